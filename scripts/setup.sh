@@ -1,0 +1,39 @@
+#!/usr/bin/env bash
+# Installs every Debian 12 package slamvdb needs and builds it in Release.
+# Usage: scripts/setup.sh            (install + build)
+#        SLAMVDB_SKIP_APT=1 scripts/setup.sh   (build only)
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+PACKAGES=(
+  build-essential cmake ninja-build pkg-config
+  libeigen3-dev          # linear algebra, poses
+  libtbb-dev             # parallel loops
+  libopencv-dev          # images, PNG/JPEG, projectPoints
+  libsqlite3-dev         # map store
+  libspdlog-dev libfmt-dev  # logging
+  libcli11-dev           # CLI
+  nlohmann-json3-dev     # manifests, metadata
+  libyaml-cpp-dev        # transforms.yaml, ontology
+  zlib1g-dev             # CLIP merge list (.gz)
+  libgtest-dev libgmock-dev  # tests
+  libbenchmark-dev       # benchmarks
+  liboctomap-dev         # side-by-side occupancy benchmark baseline
+  libtorch-dev libopenblas0-pthread  # TorchScript inference (+ fast BLAS)
+  python3-torch python3-numpy        # tests trace small TorchScript models
+)
+
+if [ "${SLAMVDB_SKIP_APT:-0}" != "1" ]; then
+  missing=()
+  for p in "${PACKAGES[@]}"; do
+    dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+  done
+  if [ ${#missing[@]} -gt 0 ]; then
+    SUDO=""; [ "$(id -u)" != 0 ] && SUDO=sudo
+    $SUDO apt-get update -qq
+    DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}"
+  fi
+fi
+
+cmake -S . -B build -G Ninja -DCMAKE_BUILD_TYPE=Release
+cmake --build build -j"$(nproc)"

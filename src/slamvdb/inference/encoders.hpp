@@ -1,0 +1,57 @@
+#pragma once
+// The one interface behind which every vision-language model sits: a real TorchScript network,
+// or the simulated encoders used for synthetic data. The map never sees which one it is.
+#include <opencv2/core.hpp>
+#include <string>
+#include <string_view>
+#include <vector>
+
+namespace slamvdb {
+
+// Per-pixel embeddings, pixel-major (H x W x C): the C values of one pixel are contiguous, which
+// is what fusion reads. Files and networks that produce C x H x W are transposed on arrival.
+struct FeatureMap {
+  int dim = 0, height = 0, width = 0;
+  std::vector<float> data;  // size height * width * dim
+
+  FeatureMap() = default;
+  FeatureMap(int dim_, int height_, int width_)
+      : dim(dim_), height(height_), width(width_), data(static_cast<std::size_t>(dim_) * height_ * width_) {}
+  float* pixel(int x, int y) { return data.data() + (static_cast<std::size_t>(y) * width + x) * dim; }
+  const float* pixel(int x, int y) const { return data.data() + (static_cast<std::size_t>(y) * width + x) * dim; }
+};
+
+// One camera image as the encoders see it. A network reads `rgb`; the simulated encoder reads
+// the 2D ground-truth `labels` (CV_8UC1 class ids). Either may be empty when not available.
+struct ImageFrame {
+  double stamp = 0.0;
+  cv::Mat rgb;     // CV_8UC3, RGB order
+  cv::Mat labels;  // CV_8UC1
+  std::string source;  // file name, for messages
+};
+
+class DenseImageEncoder {
+ public:
+  virtual ~DenseImageEncoder() = default;
+  virtual FeatureMap encode(const ImageFrame& frame) = 0;
+  virtual int dim() const = 0;
+  virtual std::string model_id() const = 0;
+};
+
+class ImageEncoder {
+ public:
+  virtual ~ImageEncoder() = default;
+  virtual std::vector<float> encode(const ImageFrame& frame) = 0;
+  virtual int dim() const = 0;
+  virtual std::string model_id() const = 0;
+};
+
+class TextEncoder {
+ public:
+  virtual ~TextEncoder() = default;
+  virtual std::vector<float> encode(std::string_view text) = 0;
+  virtual int dim() const = 0;
+  virtual std::string model_id() const = 0;
+};
+
+}  // namespace slamvdb

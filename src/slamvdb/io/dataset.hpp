@@ -1,0 +1,39 @@
+#pragma once
+// A recorded (or synthetic) sequence as the mapping pipeline consumes it, whatever its layout.
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "slamvdb/core/types.hpp"
+#include "slamvdb/fusion/camera_model.hpp"
+#include "slamvdb/fusion/trajectory.hpp"
+#include "slamvdb/inference/encoders.hpp"
+
+namespace slamvdb {
+
+struct ScanRecord {
+  double stamp = 0.0;
+  std::filesystem::path points;  // x y z intensity float32
+  std::filesystem::path labels;  // uint32 per point, low 16 bits class; may be empty
+};
+
+struct ImageRecord {
+  double stamp = 0.0;
+  std::filesystem::path rgb;       // may be empty
+  std::filesystem::path labels;    // 2D label image (uint8 ids); may be empty
+  std::filesystem::path features;  // precomputed C x H x W .npy; may be empty
+};
+
+struct Sequence {
+  std::filesystem::path root;
+  std::string layout;              // "rellis3d" or "kitti"
+  CameraModel camera;              // at full image resolution
+  Pose T_lidar_camera = Pose::Identity();
+  std::vector<ScanRecord> scans;   // sorted by stamp
+  std::vector<ImageRecord> images; // sorted by stamp
+  Trajectory poses;                // ground-truth T_world_lidar at the scan stamps (may be empty)
+  std::vector<std::string> notes;  // assumptions made while reading (e.g. how scan stamps were derived)
+};
+
+}  // namespace slamvdb
