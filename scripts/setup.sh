@@ -12,6 +12,7 @@ PACKAGES=(
   libopencv-dev          # images, PNG/JPEG, projectPoints
   libsqlite3-dev         # map store
   libspdlog-dev libfmt-dev  # logging
+  libabsl-dev            # flat hash maps (voxel blocks, semantic index)
   libcli11-dev           # CLI
   nlohmann-json3-dev     # manifests, metadata
   libyaml-cpp-dev        # transforms.yaml, ontology

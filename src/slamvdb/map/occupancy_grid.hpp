@@ -1,0 +1,160 @@
+#pragma once
+// Sparse, unbounded log-odds occupancy grid (OctoMap's update rule on a hashed grid of 8^3 blocks).
+#include <absl/container/flat_hash_map.h>
+#include <absl/hash/hash.h>
+
+#include <array>
+#include <bitset>
+#include <cmath>
+#include <memory>
+#include <optional>
+#include <vector>
+
+#include "slamvdb/core/types.hpp"
+
+namespace slamvdb {
+
+struct OccupancyParams {
+  double voxel_size = 0.25;
+  float log_odds_hit = 0.8472979f;    // logit(0.7), OctoMap's default
+  float log_odds_miss = -0.4054651f;  // logit(0.4)
+  float clamp_min = -2.0f;            // logit(0.1192)
+  float clamp_max = 3.5f;             // logit(0.971)
+  float occupied_threshold = 0.0f;    // logit(0.5); occupied when log-odds >= this
+  double min_point_range = 0.3;       // closer returns hit the robot itself
+  double max_point_range = 100.0;     // beyond: the ray still clears, the return is not inserted
+  double max_clearing_range = 25.0;   // misses only along the first metres of each ray
+  void validate() const;              // throws Error
+};
+
+// What one scan did; every dropped point is counted under its reason.
+struct ScanIntegrationStats {
+  std::size_t points = 0;
+  std::size_t dropped_nonfinite = 0;   // NaN or Inf coordinates
+  std::size_t dropped_no_return = 0;   // exactly at the sensor origin (how Ouster marks no return)
+  std::size_t dropped_too_close = 0;   // closer than min_point_range
+  std::size_t beyond_max_range = 0;    // cleared up to max_point_range, not inserted as a hit
+  std::size_t hit_updates = 0;         // voxels updated as occupied
+  std::size_t miss_updates = 0;        // voxels updated as free
+  std::size_t voxels_freed = 0;        // occupied -> free transitions
+  std::size_t dropped() const { return dropped_nonfinite + dropped_no_return + dropped_too_close; }
+  ScanIntegrationStats& operator+=(const ScanIntegrationStats& o);
+};
+
+struct VoxelKeyAbslHash {
+  std::size_t operator()(const VoxelKey& k) const noexcept {
+    return absl::Hash<std::tuple<int, int, int>>{}(std::make_tuple(k.x(), k.y(), k.z()));
+  }
+};
+
+class OccupancyGrid {
+ public:
+  static constexpr int kBlockBits = 3;
+  static constexpr int kBlockSide = 1 << kBlockBits;
+  static constexpr int kBlockVoxels = kBlockSide * kBlockSide * kBlockSide;
+
+  struct Block {
+    Block();
+    std::array<float, kBlockVoxels> log_odds;  // NaN = never observed
+    std::array<uint32_t, kBlockVoxels> stamp;  // last scan that updated the voxel (one update per scan)
+    std::bitset<kBlockVoxels> occupied;
+    int num_occupied = 0;
+  };
+  using BlockMap = absl::flat_hash_map<VoxelKey, std::unique_ptr<Block>, VoxelKeyAbslHash>;
+
+  explicit OccupancyGrid(const OccupancyParams& params = {});
+
+  // Inserts one scan given in the sensor frame. Keys of voxels that turned free are appended to
+  // `freed` (the semantic layer drops them).
+  ScanIntegrationStats integrate_scan(const std::vector<Vec3f>& points_sensor, const Pose& T_world_sensor,
+                                      std::vector<VoxelKey>* freed = nullptr);
+
+  const OccupancyParams& params() const { return params_; }
+  double voxel_size() const { return params_.voxel_size; }
+  VoxelKey key_of(const Vec3d& p) const {
+    return {static_cast<int>(std::floor(p.x() * inv_voxel_size_)), static_cast<int>(std::floor(p.y() * inv_voxel_size_)),
+            static_cast<int>(std::floor(p.z() * inv_voxel_size_))};
+  }
+  Vec3d center_of(const VoxelKey& k) const { return (k.cast<double>().array() + 0.5).matrix() * params_.voxel_size; }
+
+  std::optional<float> log_odds(const VoxelKey& k) const;  // nullopt when never observed
+  bool is_occupied(const VoxelKey& k) const;
+  // Sets a voxel's log-odds directly (map loading, tests); NaN makes it unknown again.
+  void set_log_odds(const VoxelKey& k, float value);
+
+  std::size_t num_blocks() const { return blocks_.size(); }
+  std::size_t num_known_voxels() const;
+  std::size_t num_occupied_voxels() const;
+  std::size_t memory_bytes() const;
+  uint32_t scans_integrated() const { return scan_counter_; }
+
+  static VoxelKey block_key_of(const VoxelKey& k) { return {k.x() >> kBlockBits, k.y() >> kBlockBits, k.z() >> kBlockBits}; }
+  static int index_in_block(const VoxelKey& k) {
+    constexpr int m = kBlockSide - 1;
+    return (k.x() & m) | ((k.y() & m) << kBlockBits) | ((k.z() & m) << (2 * kBlockBits));
+  }
+  static VoxelKey voxel_key(const VoxelKey& block_key, int index) {
+    constexpr int m = kBlockSide - 1;
+    return {(block_key.x() << kBlockBits) | (index & m), (block_key.y() << kBlockBits) | ((index >> kBlockBits) & m),
+            (block_key.z() << kBlockBits) | (index >> (2 * kBlockBits))};
+  }
+  const BlockMap& blocks() const { return blocks_; }
+
+  template <class F>  // f(const VoxelKey&, float log_odds)
+  void for_each_occupied(F&& f) const {
+    for (const auto& [bk, block] : blocks_) {
+      if (block->num_occupied == 0) continue;
+      for (int i = 0; i < kBlockVoxels; ++i)
+        if (block->occupied[i]) f(voxel_key(bk, i), block->log_odds[i]);
+    }
+  }
+
+ private:
+  Block& block_at(const VoxelKey& block_key);
+  void update_voxel(Block& b, const VoxelKey& key, int index, float delta, ScanIntegrationStats& stats,
+                    std::vector<VoxelKey>* freed);
+
+  OccupancyParams params_;
+  double inv_voxel_size_;
+  BlockMap blocks_;
+  uint32_t scan_counter_ = 0;
+};
+
+// Visits the voxels a segment crosses, from the one containing `from` up to (excluding) the one
+// containing `to` (3D DDA, Amanatides & Woo 1987). Coordinates in voxel units.
+template <class Visit>
+void traverse_voxels(const Vec3d& from, const Vec3d& to, Visit&& visit) {
+  VoxelKey key(static_cast<int>(std::floor(from.x())), static_cast<int>(std::floor(from.y())),
+               static_cast<int>(std::floor(from.z())));
+  const VoxelKey end(static_cast<int>(std::floor(to.x())), static_cast<int>(std::floor(to.y())),
+                     static_cast<int>(std::floor(to.z())));
+  const Vec3d d = to - from;
+  int step[3];
+  double t_max[3], t_delta[3];
+  for (int a = 0; a < 3; ++a) {
+    if (d[a] > 0) {
+      step[a] = 1;
+      t_delta[a] = 1.0 / d[a];
+      t_max[a] = (key[a] + 1 - from[a]) * t_delta[a];
+    } else if (d[a] < 0) {
+      step[a] = -1;
+      t_delta[a] = -1.0 / d[a];
+      t_max[a] = (from[a] - key[a]) * t_delta[a];
+    } else {
+      step[a] = 0;
+      t_delta[a] = t_max[a] = std::numeric_limits<double>::infinity();
+    }
+  }
+  // The exact number of steps is the Manhattan distance between the end keys; bounding the loop
+  // by it keeps rounding at voxel corners from ever running past the end voxel.
+  int remaining = std::abs(end.x() - key.x()) + std::abs(end.y() - key.y()) + std::abs(end.z() - key.z());
+  while (remaining-- > 0) {
+    visit(key);
+    const int a = t_max[0] < t_max[1] ? (t_max[0] < t_max[2] ? 0 : 2) : (t_max[1] < t_max[2] ? 1 : 2);
+    if (step[a] == 0) break;
+    key[a] += step[a];
+    t_max[a] += t_delta[a];
+  }
+}
+
+}  // namespace slamvdb
