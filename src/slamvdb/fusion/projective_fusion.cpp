@@ -60,7 +60,7 @@ const Association& ProjectiveFusion::associate(const OccupancyGrid& grid, const 
     if (db > block_radius && std::acos(std::clamp(pb.z() / db, -1.0, 1.0)) > cone + std::asin(block_radius / db))
       continue;
     for (int i = 0; i < OccupancyGrid::kBlockVoxels; ++i) {
-      if (!block->occupied[i]) continue;
+      if (!block->occupied(i)) continue;
       const VoxelKey key = OccupancyGrid::voxel_key(bk, i);
       const Vec3d p = R * grid.center_of(key) + t;
       const double dist = p.norm();

@@ -1,7 +1,10 @@
 #include "slamvdb/map/occupancy_grid.hpp"
 
 #include <fmt/format.h>
+#include <tbb/enumerable_thread_specific.h>
+#include <tbb/parallel_for.h>
 
+#include <atomic>
 #include <limits>
 
 #include "slamvdb/core/error.hpp"
@@ -31,10 +34,7 @@ ScanIntegrationStats& ScanIntegrationStats::operator+=(const ScanIntegrationStat
   return *this;
 }
 
-OccupancyGrid::Block::Block() {
-  log_odds.fill(std::numeric_limits<float>::quiet_NaN());
-  stamp.fill(0);
-}
+OccupancyGrid::Block::Block() { cells.fill({std::numeric_limits<float>::quiet_NaN(), 0}); }
 
 OccupancyGrid::OccupancyGrid(const OccupancyParams& params) : params_(params) {
   params_.validate();
@@ -47,21 +47,34 @@ OccupancyGrid::Block& OccupancyGrid::block_at(const VoxelKey& block_key) {
   return *slot;
 }
 
-void OccupancyGrid::update_voxel(Block& b, const VoxelKey& key, int i, float delta, ScanIntegrationStats& stats,
-                                 std::vector<VoxelKey>* freed) {
-  float& lo = b.log_odds[i];
-  const bool was_occupied = b.occupied[i];
-  const float v = std::isnan(lo) ? delta : lo + delta;
-  lo = std::clamp(v, params_.clamp_min, params_.clamp_max);
+// Per-thread state of one scan's integration.
+struct OccupancyGrid::ScanContext {
+  ScanIntegrationStats stats;
+  std::vector<VoxelKey> freed;
+  std::vector<uint32_t> deferred;  // rays that reached a block that does not exist yet
+};
+
+void OccupancyGrid::set_occupied_bit(Block& b, int i, bool occupied) {
+  std::atomic_ref<uint64_t> word(b.occupied_bits[i >> 6]);
+  const uint64_t mask = uint64_t{1} << (i & 63);
+  occupied ? word.fetch_or(mask, std::memory_order_relaxed) : word.fetch_and(~mask, std::memory_order_relaxed);
+  std::atomic_ref<int>(b.num_occupied).fetch_add(occupied ? 1 : -1, std::memory_order_relaxed);
+}
+
+// Called only by the thread that claimed the voxel's stamp for this scan, so the cell is ours.
+void OccupancyGrid::update_voxel(Block& b, const VoxelKey& key, int i, float delta, ScanContext& ctx) {
+  float& lo = b.cells[i].log_odds;
+  const bool was_occupied = !std::isnan(lo) && lo >= params_.occupied_threshold;
+  lo = std::clamp(std::isnan(lo) ? delta : lo + delta, params_.clamp_min, params_.clamp_max);
   const bool now_occupied = lo >= params_.occupied_threshold;
   if (now_occupied != was_occupied) {
-    b.occupied[i] = now_occupied;
-    b.num_occupied += now_occupied ? 1 : -1;
+    set_occupied_bit(b, i, now_occupied);
     if (was_occupied) {
-      ++stats.voxels_freed;
-      if (freed) freed->push_back(key);
+      ++ctx.stats.voxels_freed;
+      ctx.freed.push_back(key);
     }
   }
+  ++(delta > 0 ? ctx.stats.hit_updates : ctx.stats.miss_updates);
 }
 
 ScanIntegrationStats OccupancyGrid::integrate_scan(const std::vector<Vec3f>& points_sensor, const Pose& T_world_sensor,
@@ -72,7 +85,6 @@ ScanIntegrationStats OccupancyGrid::integrate_scan(const std::vector<Vec3f>& poi
   const Vec3d origin = T_world_sensor.translation();
   const Eigen::Matrix3d R = T_world_sensor.linear();
 
-  // Classify every point first: rays need the direction, hits need the end point.
   struct Ray {
     Vec3d dir;     // unit, world frame
     double range;  // metres
@@ -99,31 +111,70 @@ ScanIntegrationStats OccupancyGrid::integrate_scan(const std::vector<Vec3f>& poi
     rays.push_back({R * (p.cast<double>() / range), hit ? range : params_.max_point_range, hit});
   }
 
-  // Hits first and stamped, so a voxel that is both an end point and on some other ray is updated
-  // once, as occupied (OctoMap's rule: the free set excludes the occupied set).
-  VoxelKey cached_block_key(std::numeric_limits<int>::min(), 0, 0);
-  Block* cached = nullptr;
-  auto visit = [&](const VoxelKey& key, float delta) {
-    const VoxelKey bk = block_key_of(key);
-    if (!cached || bk != cached_block_key) {
-      cached = &block_at(bk);
-      cached_block_key = bk;
-    }
-    const int i = index_in_block(key);
-    if (cached->stamp[i] == scan) return;
-    cached->stamp[i] = scan;
-    update_voxel(*cached, key, i, delta, stats, freed);
-    ++(delta > 0 ? stats.hit_updates : stats.miss_updates);
-  };
-  for (const Ray& r : rays)
-    if (r.hit) visit(key_of(origin + r.dir * r.range), params_.log_odds_hit);
-
+  // Rays are cast in parallel. A voxel is updated only by the thread that moves its stamp to this
+  // scan (at most one update per voxel per scan). The block table is read-only while threads run:
+  // a ray that needs a new block is deferred and replayed serially, where its already-stamped
+  // voxels are skipped, so replay never updates a voxel twice.
+  tbb::enumerable_thread_specific<ScanContext> contexts;
   const Vec3d from = origin * inv_voxel_size_;
-  for (const Ray& r : rays) {
+
+  // mode 0: parallel, defer on a missing block; mode 1: serial, create blocks.
+  auto cast = [&](const Ray& r, uint32_t ray_index, bool hits, ScanContext& ctx, bool serial) {
+    VoxelKey cached_key(std::numeric_limits<int>::min(), 0, 0);
+    Block* block = nullptr;
+    bool stop = false;
+    auto visit = [&](const VoxelKey& key, float delta) {
+      if (stop) return;
+      const VoxelKey bk = block_key_of(key);
+      if (!block || bk != cached_key) {
+        if (serial) {
+          block = &block_at(bk);
+        } else {
+          const auto it = blocks_.find(bk);
+          if (it == blocks_.end()) {
+            ctx.deferred.push_back(ray_index);
+            stop = true;
+            return;
+          }
+          block = it->second.get();
+        }
+        cached_key = bk;
+      }
+      const int i = index_in_block(key);
+      uint32_t& stamp = block->cells[i].stamp;
+      if (std::atomic_ref<uint32_t>(stamp).load(std::memory_order_relaxed) == scan) return;
+      if (std::atomic_ref<uint32_t>(stamp).exchange(scan, std::memory_order_relaxed) == scan) return;
+      update_voxel(*block, key, i, delta, ctx);
+    };
+    if (hits) {
+      if (r.hit) visit(key_of(origin + r.dir * r.range), params_.log_odds_hit);
+      return;
+    }
     const double clear = std::min(r.range, params_.max_clearing_range);
-    if (clear <= 0) continue;
-    traverse_voxels(from, (origin + r.dir * clear) * inv_voxel_size_,
-                    [&](const VoxelKey& k) { visit(k, params_.log_odds_miss); });
+    if (clear > 0)
+      traverse_voxels(from, (origin + r.dir * clear) * inv_voxel_size_,
+                      [&](const VoxelKey& k) { visit(k, params_.log_odds_miss); });
+  };
+
+  // Hits first, all of them, so a voxel that is both an end point and on another ray counts as a
+  // hit (OctoMap's rule: the free set excludes the occupied set).
+  for (const bool hits : {true, false}) {
+    tbb::parallel_for(tbb::blocked_range<uint32_t>(0, static_cast<uint32_t>(rays.size()), 512),
+                      [&](const tbb::blocked_range<uint32_t>& range) {
+                        ScanContext& ctx = contexts.local();
+                        for (uint32_t i = range.begin(); i != range.end(); ++i) cast(rays[i], i, hits, ctx, false);
+                      });
+    ScanContext serial_ctx;
+    for (ScanContext& ctx : contexts) {
+      for (uint32_t i : ctx.deferred) cast(rays[i], i, hits, serial_ctx, true);
+      ctx.deferred.clear();
+    }
+    contexts.local().stats += serial_ctx.stats;
+    contexts.local().freed.insert(contexts.local().freed.end(), serial_ctx.freed.begin(), serial_ctx.freed.end());
+  }
+  for (const ScanContext& ctx : contexts) {
+    stats += ctx.stats;
+    if (freed) freed->insert(freed->end(), ctx.freed.begin(), ctx.freed.end());
   }
   return stats;
 }
@@ -131,31 +182,28 @@ ScanIntegrationStats OccupancyGrid::integrate_scan(const std::vector<Vec3f>& poi
 std::optional<float> OccupancyGrid::log_odds(const VoxelKey& k) const {
   const auto it = blocks_.find(block_key_of(k));
   if (it == blocks_.end()) return std::nullopt;
-  const float v = it->second->log_odds[index_in_block(k)];
+  const float v = it->second->cells[index_in_block(k)].log_odds;
   if (std::isnan(v)) return std::nullopt;
   return v;
 }
 
 bool OccupancyGrid::is_occupied(const VoxelKey& k) const {
   const auto it = blocks_.find(block_key_of(k));
-  return it != blocks_.end() && it->second->occupied[index_in_block(k)];
+  return it != blocks_.end() && it->second->occupied(index_in_block(k));
 }
 
 void OccupancyGrid::set_log_odds(const VoxelKey& k, float value) {
   Block& b = block_at(block_key_of(k));
   const int i = index_in_block(k);
-  b.log_odds[i] = value;
+  b.cells[i].log_odds = value;
   const bool occ = !std::isnan(value) && value >= params_.occupied_threshold;
-  if (occ != b.occupied[i]) {
-    b.occupied[i] = occ;
-    b.num_occupied += occ ? 1 : -1;
-  }
+  if (occ != b.occupied(i)) set_occupied_bit(b, i, occ);
 }
 
 std::size_t OccupancyGrid::num_known_voxels() const {
   std::size_t n = 0;
   for (const auto& [bk, b] : blocks_)
-    for (float v : b->log_odds) n += !std::isnan(v);
+    for (const Cell& c : b->cells) n += !std::isnan(c.log_odds);
   return n;
 }
 

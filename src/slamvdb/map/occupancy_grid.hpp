@@ -4,8 +4,8 @@
 #include <absl/hash/hash.h>
 
 #include <array>
-#include <bitset>
 #include <cmath>
+#include <limits>
 #include <memory>
 #include <optional>
 #include <vector>
@@ -53,11 +53,16 @@ class OccupancyGrid {
   static constexpr int kBlockSide = 1 << kBlockBits;
   static constexpr int kBlockVoxels = kBlockSide * kBlockSide * kBlockSide;
 
+  // A voxel's log-odds and the last scan that updated it sit side by side: ray casting reads both.
+  struct Cell {
+    float log_odds;  // NaN = never observed
+    uint32_t stamp;  // last scan that updated the voxel (one update per scan)
+  };
   struct Block {
     Block();
-    std::array<float, kBlockVoxels> log_odds;  // NaN = never observed
-    std::array<uint32_t, kBlockVoxels> stamp;  // last scan that updated the voxel (one update per scan)
-    std::bitset<kBlockVoxels> occupied;
+    bool occupied(int i) const { return (occupied_bits[i >> 6] >> (i & 63)) & 1u; }
+    std::array<Cell, kBlockVoxels> cells;
+    std::array<uint64_t, kBlockVoxels / 64> occupied_bits{};  // written atomically during a scan
     int num_occupied = 0;
   };
   using BlockMap = absl::flat_hash_map<VoxelKey, std::unique_ptr<Block>, VoxelKeyAbslHash>;
@@ -105,14 +110,15 @@ class OccupancyGrid {
     for (const auto& [bk, block] : blocks_) {
       if (block->num_occupied == 0) continue;
       for (int i = 0; i < kBlockVoxels; ++i)
-        if (block->occupied[i]) f(voxel_key(bk, i), block->log_odds[i]);
+        if (block->occupied(i)) f(voxel_key(bk, i), block->cells[i].log_odds);
     }
   }
 
  private:
+  struct ScanContext;
   Block& block_at(const VoxelKey& block_key);
-  void update_voxel(Block& b, const VoxelKey& key, int index, float delta, ScanIntegrationStats& stats,
-                    std::vector<VoxelKey>* freed);
+  void set_occupied_bit(Block& b, int index, bool occupied);
+  void update_voxel(Block& b, const VoxelKey& key, int index, float delta, ScanContext& ctx);
 
   OccupancyParams params_;
   double inv_voxel_size_;
@@ -124,36 +130,39 @@ class OccupancyGrid {
 // containing `to` (3D DDA, Amanatides & Woo 1987). Coordinates in voxel units.
 template <class Visit>
 void traverse_voxels(const Vec3d& from, const Vec3d& to, Visit&& visit) {
-  VoxelKey key(static_cast<int>(std::floor(from.x())), static_cast<int>(std::floor(from.y())),
-               static_cast<int>(std::floor(from.z())));
-  const VoxelKey end(static_cast<int>(std::floor(to.x())), static_cast<int>(std::floor(to.y())),
-                     static_cast<int>(std::floor(to.z())));
-  const Vec3d d = to - from;
-  int step[3];
-  double t_max[3], t_delta[3];
-  for (int a = 0; a < 3; ++a) {
-    if (d[a] > 0) {
-      step[a] = 1;
-      t_delta[a] = 1.0 / d[a];
-      t_max[a] = (key[a] + 1 - from[a]) * t_delta[a];
-    } else if (d[a] < 0) {
-      step[a] = -1;
-      t_delta[a] = -1.0 / d[a];
-      t_max[a] = (from[a] - key[a]) * t_delta[a];
+  // Scalars rather than indexed arrays: this loop runs millions of times per scan and indexed
+  // stack arrays keep the state in memory instead of registers.
+  int kx = static_cast<int>(std::floor(from.x())), ky = static_cast<int>(std::floor(from.y())),
+      kz = static_cast<int>(std::floor(from.z()));
+  const int ex = static_cast<int>(std::floor(to.x())), ey = static_cast<int>(std::floor(to.y())),
+            ez = static_cast<int>(std::floor(to.z()));
+  constexpr double kInf = std::numeric_limits<double>::infinity();
+  auto setup = [](double f, double d, int k, int& step, double& t_max, double& t_delta) {
+    if (d > 0) {
+      step = 1, t_delta = 1.0 / d, t_max = (k + 1 - f) * t_delta;
+    } else if (d < 0) {
+      step = -1, t_delta = -1.0 / d, t_max = (f - k) * t_delta;
     } else {
-      step[a] = 0;
-      t_delta[a] = t_max[a] = std::numeric_limits<double>::infinity();
+      step = 0, t_delta = kInf, t_max = kInf;
     }
-  }
+  };
+  int sx, sy, sz;
+  double tx, ty, tz, dx, dy, dz;
+  setup(from.x(), to.x() - from.x(), kx, sx, tx, dx);
+  setup(from.y(), to.y() - from.y(), ky, sy, ty, dy);
+  setup(from.z(), to.z() - from.z(), kz, sz, tz, dz);
   // The exact number of steps is the Manhattan distance between the end keys; bounding the loop
   // by it keeps rounding at voxel corners from ever running past the end voxel.
-  int remaining = std::abs(end.x() - key.x()) + std::abs(end.y() - key.y()) + std::abs(end.z() - key.z());
+  int remaining = std::abs(ex - kx) + std::abs(ey - ky) + std::abs(ez - kz);
   while (remaining-- > 0) {
-    visit(key);
-    const int a = t_max[0] < t_max[1] ? (t_max[0] < t_max[2] ? 0 : 2) : (t_max[1] < t_max[2] ? 1 : 2);
-    if (step[a] == 0) break;
-    key[a] += step[a];
-    t_max[a] += t_delta[a];
+    visit(VoxelKey(kx, ky, kz));
+    if (tx < ty) {
+      if (tx < tz) kx += sx, tx += dx;
+      else kz += sz, tz += dz;
+    } else {
+      if (ty < tz) ky += sy, ty += dy;
+      else kz += sz, tz += dz;
+    }
   }
 }
 

@@ -61,13 +61,13 @@ TEST(OccupancyVsOctoMap, SameLogOddsVoxelByVoxel) {
   std::size_t ours = 0, same = 0, occupied_mismatch = 0;
   for (const auto& [bk, block] : grid.blocks()) {
     for (int i = 0; i < OccupancyGrid::kBlockVoxels; ++i) {
-      const float lo = block->log_odds[i];
+      const float lo = block->cells[i].log_odds;
       if (std::isnan(lo)) continue;
       ++ours;
       const Vec3d c = grid.center_of(OccupancyGrid::voxel_key(bk, i));
       const octomap::OcTreeNode* n = tree.search(c.x(), c.y(), c.z());
       if (n && std::abs(n->getLogOdds() - lo) < 1e-4f) ++same;
-      if (!n || tree.isNodeOccupied(n) != block->occupied[i]) ++occupied_mismatch;
+      if (!n || tree.isNodeOccupied(n) != block->occupied(i)) ++occupied_mismatch;
     }
   }
   std::size_t theirs = 0;
