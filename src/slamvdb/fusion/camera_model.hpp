@@ -18,7 +18,10 @@ struct CameraModel {
 
   // Distorts normalised image coordinates (x/z, y/z).
   Eigen::Vector2d distort(const Eigen::Vector2d& xy) const;
-  // Pixel coordinates of a point in the camera frame (z forward); nullopt behind the camera.
+  // False where the distortion polynomial has folded back (far outside the field of view).
+  bool in_distortion_domain(const Eigen::Vector2d& xy) const;
+  // Pixel coordinates of a point in the camera frame (z forward); nullopt behind the camera or
+  // outside the distortion model's domain.
   std::optional<Eigen::Vector2d> project(const Vec3d& p_cam) const;
   bool has_distortion() const;
   void validate() const;  // throws Error on non-positive sizes or focal lengths

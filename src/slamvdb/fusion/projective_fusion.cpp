@@ -79,7 +79,9 @@ const Association& ProjectiveFusion::associate(const OccupancyGrid& grid, const 
       if (behind) continue;
       double uc = camera.fx * p.x() / p.z() + camera.cx, vc = camera.fy * p.y() / p.z() + camera.cy;
       if (distorted) {  // lens distortion moves the footprint; over one voxel it barely reshapes it
-        const Eigen::Vector2d d = *camera.project(p);
+        const auto projected = camera.project(p);
+        if (!projected) continue;
+        const Eigen::Vector2d d = *projected;
         umin += d.x() - uc, umax += d.x() - uc, vmin += d.y() - vc, vmax += d.y() - vc;
         uc = d.x(), vc = d.y();
       }

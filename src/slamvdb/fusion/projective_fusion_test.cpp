@@ -151,3 +151,24 @@ TEST(ProjectiveFusion, RejectsMismatchedFeatureMaps) {
 
 }  // namespace
 }  // namespace slamvdb
+
+namespace slamvdb {
+namespace {
+
+// Far outside the field of view the plumb_bob polynomial folds back into the image; such voxels
+// must not be associated (they would cover the whole image from just beside the camera).
+TEST(ProjectiveFusion, DistortionFoldBackIsRejected) {
+  CameraModel c = feature_camera();
+  c.distortion = {-0.134313, -0.025905, 0.002181, 0.00084, 0.0};
+  const Vec3d beside(1.2, 1.2, 0.9);  // 60 degrees off axis
+  const Eigen::Vector2d folded = c.distort({beside.x() / beside.z(), beside.y() / beside.z()});
+  ASSERT_LT(std::abs(c.fx * folded.x() + c.cx), 192.0) << "the polynomial folds this point into the image";
+  EXPECT_FALSE(c.project(beside));
+  VoxelMap map(params(3));
+  occupy(map, beside);
+  ProjectiveFusion fusion;
+  EXPECT_TRUE(fusion.associate(map.occupancy(), c, Pose::Identity()).voxels.empty());
+}
+
+}  // namespace
+}  // namespace slamvdb

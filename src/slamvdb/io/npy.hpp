@@ -1,0 +1,24 @@
+#pragma once
+// NumPy .npy files for precomputed dense feature maps (C x H x W on disk, pixel-major in memory).
+#include <cstddef>
+#include <filesystem>
+#include <vector>
+
+#include "slamvdb/inference/encoders.hpp"
+
+namespace slamvdb {
+
+// Reads a little-endian, C-ordered float32 or float16 array of shape C x H x W or 1 x C x H x W
+// and transposes it to the pixel-major FeatureMap. Anything else throws Error naming the file.
+FeatureMap read_feature_npy(const std::filesystem::path& path);
+// The same into `map`, reusing its storage: a caller reading one map per frame avoids faulting in
+// a fresh 50 MB buffer each time (that costs as much as the transpose).
+void read_feature_npy(const std::filesystem::path& path, FeatureMap& map);
+
+// Writes the map as a C x H x W float32 array.
+void write_feature_npy(const std::filesystem::path& path, const FeatureMap& map);
+
+// Writes a C-ordered float32 array of the given shape (format version 1.0).
+void write_npy_array(const std::filesystem::path& path, const float* data, const std::vector<std::size_t>& shape);
+
+}  // namespace slamvdb

@@ -1,0 +1,250 @@
+#include "slamvdb/io/rellis_reader.hpp"
+
+#include <fmt/format.h>
+#include <fmt/std.h>
+#include <yaml-cpp/yaml.h>
+
+#include <algorithm>
+#include <charconv>
+#include <cmath>
+#include <map>
+
+#include "slamvdb/core/error.hpp"
+#include "slamvdb/io/image_io.hpp"
+
+namespace slamvdb {
+
+namespace {
+namespace fs = std::filesystem;
+
+std::optional<int64_t> parse_integer(std::string_view digits) {
+  if (digits.empty() || !std::all_of(digits.begin(), digits.end(), [](char c) { return c >= '0' && c <= '9'; }))
+    return std::nullopt;
+  int64_t v = 0;
+  const auto [end, ec] = std::from_chars(digits.data(), digits.data() + digits.size(), v);
+  if (ec != std::errc() || end != digits.data() + digits.size()) return std::nullopt;
+  return v;
+}
+
+struct StampedImage {
+  RellisImageName name;
+  ImageRecord record;
+};
+
+// Camera images and label images share stems; either folder alone is enough (a simulated
+// sequence may have label images only).
+std::vector<StampedImage> collect_images(const fs::path& dir, std::vector<std::string>& notes) {
+  const fs::path rgb_dir = dir / kRellisImageDir, label_dir = dir / kRellisImageLabelDir,
+                 feature_dir = dir / kFeatureDir;
+  if (!fs::is_directory(rgb_dir) && !fs::is_directory(label_dir))
+    throw Error(fmt::format("RELLIS-3D sequence {} has no camera images: neither {} nor {} is a directory", dir,
+                            rgb_dir, label_dir));
+  std::map<std::string, ImageRecord> by_stem;
+  if (fs::is_directory(rgb_dir))
+    for (const char* ext : {".jpg", ".jpeg", ".png"})
+      for (const auto& file : list_files(rgb_dir, ext)) by_stem[file.stem().string()].rgb = file;
+  if (fs::is_directory(label_dir))
+    for (const auto& file : list_files(label_dir, ".png")) by_stem[file.stem().string()].labels = file;
+
+  std::vector<StampedImage> images;
+  std::size_t without_rgb = 0, without_labels = 0, without_features = 0;
+  for (auto& [stem, record] : by_stem) {
+    const auto name = parse_rellis_image_name(stem);
+    if (!name)
+      throw Error(
+          fmt::format("image {} is not named frameNNNNNN-SECONDS_FRACTION (RELLIS-3D), so it has no "
+                      "frame number and time stamp",
+                      record.rgb.empty() ? record.labels : record.rgb));
+    record.stamp = name->stamp;
+    const fs::path features = feature_dir / (stem + ".npy");
+    if (fs::exists(features)) record.features = features;
+    without_rgb += record.rgb.empty();
+    without_labels += record.labels.empty();
+    without_features += record.features.empty();
+    images.push_back({*name, std::move(record)});
+  }
+  if (images.empty())
+    throw Error(fmt::format("RELLIS-3D sequence {} has no images in {} or {}", dir, rgb_dir, label_dir));
+  std::sort(images.begin(), images.end(), [](const auto& a, const auto& b) { return a.name.stamp < b.name.stamp; });
+  std::vector<double> stamps;
+  for (const auto& image : images) stamps.push_back(image.record.stamp);
+  check_increasing(stamps, fmt::format("camera images in {} (stamps from the file names)", dir));
+
+  if (fs::is_directory(rgb_dir) && without_rgb > 0)
+    notes.push_back(fmt::format("{} of {} images have a label image but no camera image", without_rgb, images.size()));
+  if (fs::is_directory(label_dir) && without_labels > 0)
+    notes.push_back(fmt::format("{} of {} images have no label image in {}", without_labels, images.size(), label_dir));
+  if (fs::is_directory(feature_dir) && without_features > 0)
+    notes.push_back(
+        fmt::format("{} of {} images have no feature map in {}", without_features, images.size(), feature_dir));
+  return images;
+}
+
+// Without times.txt, scan stamps come from the camera: RELLIS-3D numbers its scans and camera
+// frames alike, and scan NNNNNN was captured together with frameNNNNNN (on the published frame
+// 000104 they are 21 ms apart). A scan without its frame is placed linearly between the nearest
+// paired scans, or beyond the first/last one at the mean period of all pairs.
+std::vector<double> stamps_from_frames(const std::vector<fs::path>& scan_files, const std::vector<StampedImage>& images,
+                                       const fs::path& dir, std::vector<std::string>& notes) {
+  std::map<int64_t, const StampedImage*> by_frame;
+  for (const auto& image : images) {
+    const auto [it, inserted] = by_frame.emplace(image.name.frame, &image);
+    if (!inserted)
+      throw Error(fmt::format("two images have frame number {}: {} and {}", image.name.frame,
+                              it->second->record.rgb.empty() ? it->second->record.labels : it->second->record.rgb,
+                              image.record.rgb.empty() ? image.record.labels : image.record.rgb));
+  }
+  std::vector<int64_t> numbers;
+  std::vector<std::pair<int64_t, double>> anchors;  // (scan number, stamp of its frame)
+  for (const auto& file : scan_files) {
+    const auto number = parse_integer(file.stem().string());
+    if (!number)
+      throw Error(
+          fmt::format("scan {} has no frame number in its name to pair it with a camera frame; provide {} "
+                      "with one time stamp per scan",
+                      file, dir / "times.txt"));
+    numbers.push_back(*number);
+    if (const auto it = by_frame.find(*number); it != by_frame.end())
+      anchors.emplace_back(*number, it->second->name.stamp);
+  }
+  if (anchors.empty() || (anchors.size() == 1 && numbers.size() > 1))
+    throw Error(
+        fmt::format("cannot time the scans of {}: {} of {} scans have a camera frame with the same number, "
+                    "too few to infer the scan rate; provide {} with one time stamp per scan",
+                    dir, anchors.size(), numbers.size(), dir / "times.txt"));
+  const double period = anchors.size() > 1 ? (anchors.back().second - anchors.front().second) /
+                                                 static_cast<double>(anchors.back().first - anchors.front().first)
+                                           : 0.0;
+  std::vector<double> stamps;
+  for (const int64_t n : numbers) {
+    const auto hi = std::lower_bound(anchors.begin(), anchors.end(), std::pair<int64_t, double>(n, -INFINITY));
+    if (hi != anchors.end() && hi->first == n) {
+      stamps.push_back(hi->second);
+    } else if (hi == anchors.begin()) {
+      stamps.push_back(hi->second - static_cast<double>(hi->first - n) * period);
+    } else if (hi == anchors.end()) {
+      stamps.push_back(anchors.back().second + static_cast<double>(n - anchors.back().first) * period);
+    } else {
+      const auto lo = hi - 1;
+      const double s = static_cast<double>(n - lo->first) / static_cast<double>(hi->first - lo->first);
+      stamps.push_back(lo->second + s * (hi->second - lo->second));
+    }
+  }
+  check_increasing(stamps, fmt::format("scan stamps taken from the camera frame names in {}", dir / kRellisImageDir));
+  notes.push_back(fmt::format(
+      "no times.txt: scan NNNNNN takes the stamp of camera frameNNNNNN (RELLIS-3D pairing; 21 ms apart on the "
+      "published frame 000104); {} of {} scans had no frame and were interpolated or extrapolated at the mean frame "
+      "period {:.4f} s",
+      numbers.size() - anchors.size(), numbers.size(), period));
+  return stamps;
+}
+}  // namespace
+
+std::optional<RellisImageName> parse_rellis_image_name(std::string_view stem) {
+  constexpr std::string_view kPrefix = "frame";
+  if (!stem.starts_with(kPrefix)) return std::nullopt;
+  stem.remove_prefix(kPrefix.size());
+  const auto dash = stem.find('-'), underscore = stem.rfind('_');
+  if (dash == std::string_view::npos || underscore == std::string_view::npos || underscore < dash) return std::nullopt;
+  const auto frame = parse_integer(stem.substr(0, dash));
+  const auto seconds = parse_integer(stem.substr(dash + 1, underscore - dash - 1));
+  const std::string_view fraction = stem.substr(underscore + 1);
+  const auto fraction_value = parse_integer(fraction);
+  if (!frame || !seconds || !fraction_value || fraction.size() > 18) return std::nullopt;
+  return RellisImageName{
+      *frame, static_cast<double>(*seconds) +
+                  static_cast<double>(*fraction_value) / std::pow(10.0, static_cast<double>(fraction.size()))};
+}
+
+Pose read_rellis_transforms(const fs::path& file) {
+  require_exists(file, "camera-LiDAR extrinsics");
+  constexpr const char* kKey = "os1_cloud_node-pylon_camera_node";
+  try {
+    const YAML::Node root = YAML::LoadFile(file.string());
+    const YAML::Node entry = root[kKey];
+    if (!entry) throw Error(fmt::format("{} has no '{}' entry", file, kKey));
+    const YAML::Node q = entry["q"], t = entry["t"];
+    if (!q || !t) throw Error(fmt::format("{}: '{}' needs 'q' (w x y z) and 't' (x y z)", file, kKey));
+    Eigen::Quaterniond rotation(q["w"].as<double>(), q["x"].as<double>(), q["y"].as<double>(), q["z"].as<double>());
+    if (std::abs(rotation.norm() - 1.0) > 1e-3)
+      throw Error(fmt::format("{}: quaternion q has norm {:.6f}, expected a unit quaternion", file, rotation.norm()));
+    Pose T_lidar_camera = Pose::Identity();
+    T_lidar_camera.linear() = rotation.normalized().toRotationMatrix();
+    T_lidar_camera.translation() = Vec3d(t["x"].as<double>(), t["y"].as<double>(), t["z"].as<double>());
+    return T_lidar_camera;
+  } catch (const YAML::Exception& e) {
+    throw Error(fmt::format("cannot read camera-LiDAR extrinsics {}: {}", file, e.what()));
+  }
+}
+
+CameraModel read_rellis_camera_info(const fs::path& file, cv::Size image_size) {
+  require_exists(file, "camera intrinsics");
+  const auto rows = read_number_rows(file);
+  if (rows.empty() || rows[0].size() != 4 || rows.size() > 2 || (rows.size() == 2 && rows[1].size() != 5))
+    throw Error(
+        fmt::format("{} must hold 'fx fy cx cy' on its first line and optionally 'k1 k2 p1 p2 k3' on the "
+                    "second",
+                    file));
+  CameraModel camera;
+  camera.width = image_size.width;
+  camera.height = image_size.height;
+  camera.fx = rows[0][0];
+  camera.fy = rows[0][1];
+  camera.cx = rows[0][2];
+  camera.cy = rows[0][3];
+  if (rows.size() == 2) std::copy(rows[1].begin(), rows[1].end(), camera.distortion.begin());
+  return camera;
+}
+
+Sequence read_rellis_sequence(const fs::path& dir, const ReadOptions& options) {
+  Sequence seq;
+  seq.root = dir;
+  seq.layout = "rellis3d";
+  const fs::path scan_dir = dir / kRellisScanDir, label_dir = dir / kRellisScanLabelDir;
+  require_exists(scan_dir, "RELLIS-3D scan folder");
+  const auto scan_files = list_files(scan_dir, ".bin");
+  if (scan_files.empty()) throw Error(fmt::format("RELLIS-3D scan folder {} has no .bin files", scan_dir));
+
+  const auto images = collect_images(dir, seq.notes);
+  for (const auto& image : images) seq.images.push_back(image.record);
+  const auto& first = seq.images.front();
+  seq.camera =
+      read_rellis_camera_info(dir / "camera_info.txt", read_image_size(first.rgb.empty() ? first.labels : first.rgb));
+  apply_camera_options(seq, options);
+  seq.T_lidar_camera = read_rellis_transforms(dir / "transforms.yaml");
+
+  std::vector<double> stamps;
+  if (const fs::path times = dir / "times.txt"; fs::exists(times)) {
+    stamps = read_stamps(times);
+    if (stamps.size() != scan_files.size())
+      throw Error(
+          fmt::format("{} has {} time stamps but {} has {} scans", times, stamps.size(), scan_dir, scan_files.size()));
+  } else {
+    stamps = stamps_from_frames(scan_files, images, dir, seq.notes);
+  }
+
+  std::size_t without_labels = 0;
+  for (std::size_t i = 0; i < scan_files.size(); ++i) {
+    ScanRecord scan{stamps[i], scan_files[i], {}};
+    if (const fs::path labels = label_dir / (scan_files[i].stem().string() + ".label"); fs::exists(labels))
+      scan.labels = labels;
+    without_labels += scan.labels.empty();
+    seq.scans.push_back(std::move(scan));
+  }
+  if (fs::is_directory(label_dir) && without_labels > 0)
+    seq.notes.push_back(
+        fmt::format("{} of {} scans have no label file in {}", without_labels, scan_files.size(), label_dir));
+
+  if (const fs::path poses_file = dir / "poses.txt"; fs::exists(poses_file)) {
+    auto poses = read_kitti_poses(poses_file);
+    if (poses.size() != scan_files.size())
+      throw Error(fmt::format("{} has {} poses but {} has {} scans (one T_world_lidar per scan expected)", poses_file,
+                              poses.size(), scan_dir, scan_files.size()));
+    seq.poses = Trajectory(std::move(stamps), std::move(poses));
+  } else {
+    seq.notes.push_back(fmt::format("no {}: the sequence has no ground-truth poses", poses_file));
+  }
+  return seq;
+}
+
+}  // namespace slamvdb

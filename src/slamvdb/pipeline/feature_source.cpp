@@ -1,0 +1,22 @@
+#include "slamvdb/pipeline/feature_source.hpp"
+
+#include "slamvdb/core/error.hpp"
+#include "slamvdb/io/image_io.hpp"
+#include "slamvdb/io/npy.hpp"
+
+namespace slamvdb {
+
+FeatureMap EncoderFeatureSource::features_for(const ImageRecord& record) {
+  const bool rgb = input_ == Input::kRgb;
+  if ((rgb ? record.rgb : record.labels).empty())
+    throw Error("image at stamp " + std::to_string(record.stamp) + " has no " + (rgb ? "RGB file" : "label image"));
+  return encoder_->encode(load_image_frame(record, rgb, !rgb));
+}
+
+FeatureMap NpyFeatureSource::features_for(const ImageRecord& record) {
+  if (record.features.empty())
+    throw Error("image " + record.rgb.filename().string() + " has no precomputed feature file");
+  return read_feature_npy(record.features);
+}
+
+}  // namespace slamvdb

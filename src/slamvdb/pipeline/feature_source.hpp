@@ -1,0 +1,44 @@
+#pragma once
+// Where an image's feature map comes from: an encoder run on the image (a network, or the
+// simulated encoder on the label image), or a precomputed .npy file beside the dataset.
+#include <memory>
+#include <string>
+
+#include "slamvdb/inference/encoders.hpp"
+#include "slamvdb/io/dataset.hpp"
+
+namespace slamvdb {
+
+class FeatureSource {
+ public:
+  virtual ~FeatureSource() = default;
+  virtual FeatureMap features_for(const ImageRecord& record) = 0;  // throws Error
+  virtual std::string model_id() const = 0;
+};
+
+// Loads the image parts the encoder reads (rgb for a network, labels for the simulation).
+class EncoderFeatureSource : public FeatureSource {
+ public:
+  enum class Input { kRgb, kLabels };
+  EncoderFeatureSource(std::unique_ptr<DenseImageEncoder> encoder, Input input)
+      : encoder_(std::move(encoder)), input_(input) {}
+  FeatureMap features_for(const ImageRecord& record) override;
+  std::string model_id() const override { return encoder_->model_id(); }
+
+ private:
+  std::unique_ptr<DenseImageEncoder> encoder_;
+  Input input_;
+};
+
+// One C x H x W .npy per image (ImageRecord::features), for users who run a network offline.
+class NpyFeatureSource : public FeatureSource {
+ public:
+  explicit NpyFeatureSource(std::string model_id) : model_id_(std::move(model_id)) {}
+  FeatureMap features_for(const ImageRecord& record) override;
+  std::string model_id() const override { return model_id_; }
+
+ private:
+  std::string model_id_;
+};
+
+}  // namespace slamvdb

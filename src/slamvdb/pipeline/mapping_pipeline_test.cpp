@@ -1,0 +1,209 @@
+// End to end on a short simulated sequence: synth -> read -> map with the simulated encoder.
+#include "slamvdb/pipeline/mapping_pipeline.hpp"
+
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+#include <map>
+
+#include "slamvdb/core/error.hpp"
+#include "slamvdb/core/ontology.hpp"
+#include "slamvdb/inference/simulated_encoders.hpp"
+#include "slamvdb/io/scan_io.hpp"
+#include "slamvdb/io/sequence_reader.hpp"
+#include "slamvdb/synth/sequence_writer.hpp"
+
+namespace slamvdb {
+namespace {
+
+namespace fs = std::filesystem;
+
+class MappingPipelineTest : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    dir_ = fs::temp_directory_path() / ("slamvdb_pipeline_test_" + std::to_string(::getpid()));
+    synth::SynthConfig config;
+    config.seed = 11;
+    config.length_m = 30.0;
+    config.image_width = 320;
+    config.image_height = 200;
+    synth::write_synthetic_sequence(config, dir_, true);
+  }
+  static void TearDownTestSuite() { fs::remove_all(dir_); }
+
+  static PipelineOptions options() {
+    PipelineOptions o;
+    o.map.semantic.dim = 64;  // small and fast; the pipeline is dimension-agnostic
+    return o;
+  }
+  static SimulatedEncoderConfig encoder_config() {
+    SimulatedEncoderConfig c;
+    c.dim = 64;
+    return c;
+  }
+
+  // Voxel-wise correctness against the majority label of the ground-truth points in each voxel
+  // (the paper's voxel labelling), predicting the class whose prototype is most similar.
+  using Correct = std::map<std::tuple<int, int, int>, bool>;
+  static Correct correctness(const SemanticMap& m, const Sequence& seq) {
+    const auto& layer = m.submaps[0].map.semantics();
+    const auto& grid = m.submaps[0].map.occupancy();
+    std::map<std::tuple<int, int, int>, std::map<uint16_t, int>> votes;
+    for (const auto& rec : seq.scans) {
+      const LidarScan scan = read_scan(rec);
+      const Pose T = *seq.poses.at(rec.stamp);
+      for (std::size_t i = 0; i < scan.points.size(); ++i) {
+        const VoxelKey k = grid.key_of(T * scan.points[i].cast<double>());
+        ++votes[{k.x(), k.y(), k.z()}][scan.labels[i]];
+      }
+    }
+    const auto protos = simulated_class_prototypes(encoder_config());
+    Correct out;
+    std::vector<float> v(layer.dim());
+    layer.for_each([&](const VoxelKey& k, SemanticLayer::Slot s) {
+      const auto it = votes.find({k.x(), k.y(), k.z()});
+      if (it == votes.end()) return;
+      uint16_t truth = 0;
+      int best_votes = -1;
+      for (const auto& [label, n] : it->second)
+        if (n > best_votes) truth = label, best_votes = n;
+      layer.read(s, v.data());
+      const Eigen::Map<const Eigen::VectorXf> e(v.data(), layer.dim());
+      Eigen::Index best;
+      (protos * e).maxCoeff(&best);
+      out[{k.x(), k.y(), k.z()}] = rellis_classes()[best].id == truth;
+    });
+    return out;
+  }
+  // Accuracy over the voxels of `c` that are also in `within`.
+  static double accuracy(const Correct& c, const Correct& within) {
+    std::size_t right = 0, total = 0;
+    for (const auto& [k, ok] : c)
+      if (within.count(k)) right += ok, ++total;
+    return total ? static_cast<double>(right) / total : 0.0;
+  }
+
+  static inline fs::path dir_;
+};
+
+TEST_F(MappingPipelineTest, BuildsASemanticMapAndFusionBeatsFewerViews) {
+  const Sequence seq = read_sequence(dir_);
+  EncoderFeatureSource source(std::make_unique<SimulatedDenseEncoder>(encoder_config()),
+                              EncoderFeatureSource::Input::kLabels);
+  PipelineReport report;
+  std::size_t last_progress = 0;
+  const SemanticMap m = build_map(seq, &source, options(), report, [&](std::size_t d, std::size_t) { last_progress = d; });
+  EXPECT_EQ(report.scans_integrated, seq.scans.size());
+  EXPECT_EQ(last_progress, seq.scans.size());
+  EXPECT_GT(report.images_total, 10u);
+  EXPECT_EQ(report.images_fused + report.images_outside_pose_range, report.images_total);
+  EXPECT_EQ(report.images_failed, 0u);
+  EXPECT_EQ(report.inference.dropped_queue_full, 0u);  // replay policy: nothing lost
+  EXPECT_GT(m.num_semantic_voxels(), 1000u);
+  EXPECT_EQ(m.info.model_id, simulated_model_id(encoder_config()));
+  const Correct all = correctness(m, seq);
+
+  // The same drive with a fifth of the images: each voxel is fused from fewer views.
+  Sequence sparse = seq;
+  sparse.images.clear();
+  for (std::size_t i = 0; i < seq.images.size(); i += 5) sparse.images.push_back(seq.images[i]);
+  PipelineReport sparse_report;
+  const SemanticMap few = build_map(sparse, &source, options(), sparse_report);
+  const Correct fewer = correctness(few, seq);
+  // On the voxels both maps labelled: more views per voxel, more voxels right.
+  const double acc_all = accuracy(all, fewer), acc_few = accuracy(fewer, all);
+  std::cout << "voxel accuracy on " << fewer.size() << " common voxels: all views " << acc_all
+            << ", a fifth of the views " << acc_few << "; all views over " << all.size() << " voxels "
+            << accuracy(all, all) << "\n";
+  EXPECT_GT(accuracy(all, all), 0.70);
+  EXPECT_GT(acc_all, acc_few + 0.03);
+}
+
+TEST_F(MappingPipelineTest, BadScansAreSkippedCountedAndReported) {
+  Sequence seq = read_sequence(dir_);
+  const fs::path bad_dir = dir_.parent_path() / (dir_.filename().string() + "_bad");
+  fs::create_directories(bad_dir);
+  // A truncated scan file and a scan with NaN points.
+  const fs::path truncated = bad_dir / "000001.bin";
+  fs::copy_file(seq.scans[1].points, truncated, fs::copy_options::overwrite_existing);
+  fs::resize_file(truncated, fs::file_size(truncated) - 7);
+  seq.scans[1].points = truncated;
+  seq.scans[1].labels.clear();
+  const fs::path with_nan = bad_dir / "000002.bin";
+  {
+    std::ofstream out(with_nan, std::ios::binary);
+    const float p[8] = {std::numeric_limits<float>::quiet_NaN(), 1, 2, 0, 5, 0, -1, 0};
+    out.write(reinterpret_cast<const char*>(p), sizeof p);
+  }
+  seq.scans[2].points = with_nan;
+  seq.scans[2].labels.clear();
+  PipelineOptions o = options();
+  o.max_scans = 5;
+  PipelineReport report;
+  build_map(seq, nullptr, o, report);
+  EXPECT_EQ(report.scans_failed, 1u);
+  EXPECT_EQ(report.scans_integrated, 4u);
+  EXPECT_EQ(report.points.dropped_nonfinite, 1u);
+  ASSERT_FALSE(report.problems.empty());
+  EXPECT_NE(report.problems[0].find("000001.bin"), std::string::npos);
+  EXPECT_NE(report.summary().find("1 unreadable"), std::string::npos);
+  fs::remove_all(bad_dir);
+}
+
+TEST_F(MappingPipelineTest, ImagesOutsideThePoseRangeAreReportedNotGuessed) {
+  Sequence seq = read_sequence(dir_);
+  ImageRecord early = seq.images.front();
+  early.stamp = seq.scans.front().stamp - 5.0;
+  seq.images.insert(seq.images.begin(), early);
+  EncoderFeatureSource source(std::make_unique<SimulatedDenseEncoder>(encoder_config()),
+                              EncoderFeatureSource::Input::kLabels);
+  PipelineOptions o = options();
+  o.max_scans = 10;
+  PipelineReport report;
+  build_map(seq, &source, o, report);
+  EXPECT_EQ(report.images_outside_pose_range, 1u);
+  EXPECT_EQ(report.images_fused + 1, report.images_total);
+}
+
+TEST_F(MappingPipelineTest, WrongFeatureDimensionIsAClearError) {
+  const Sequence seq = read_sequence(dir_);
+  SimulatedEncoderConfig c = encoder_config();
+  c.dim = 32;
+  EncoderFeatureSource source(std::make_unique<SimulatedDenseEncoder>(c), EncoderFeatureSource::Input::kLabels);
+  PipelineOptions o = options();
+  o.max_scans = 10;
+  PipelineReport report;
+  try {
+    build_map(seq, &source, o, report);
+    FAIL() << "expected an error";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("32 channels"), std::string::npos) << e.what();
+  }
+}
+
+// A worker slower than the frames: with the live policy, frames that find the queue full are
+// dropped and counted, never silently lost.
+TEST(InferenceWorker, LivePolicyCountsDroppedFrames) {
+  struct SlowSource : FeatureSource {
+    FeatureMap features_for(const ImageRecord&) override {
+      std::this_thread::sleep_for(std::chrono::milliseconds(30));
+      return FeatureMap(4, 2, 2);
+    }
+    std::string model_id() const override { return "slow"; }
+  } slow;
+  InferenceWorker worker(slow, 2);
+  std::size_t accepted = 0, dropped = 0;
+  for (int i = 0; i < 10; ++i) {
+    if (worker.try_submit({static_cast<std::size_t>(i), {}, Pose::Identity()})) ++accepted;
+    else worker.count_dropped(), ++dropped;
+  }
+  const auto results = worker.wait_all();
+  EXPECT_GT(dropped, 0u);
+  EXPECT_EQ(results.size(), accepted);
+  EXPECT_EQ(worker.stats().dropped_queue_full, dropped);
+  EXPECT_EQ(worker.stats().completed, accepted);
+}
+
+}  // namespace
+}  // namespace slamvdb
