@@ -17,6 +17,8 @@ PACKAGES=(
   nlohmann-json3-dev     # manifests, metadata
   libyaml-cpp-dev        # transforms.yaml, ontology
   zlib1g-dev             # CLIP merge list (.gz)
+  libicu-dev             # Unicode categories, case folding, NFC for the CLIP tokenizer
+  python3-regex          # test oracle for the CLIP tokenizer
   libgtest-dev libgmock-dev  # tests
   libbenchmark-dev       # benchmarks
   liboctomap-dev         # side-by-side occupancy benchmark baseline

@@ -58,6 +58,14 @@ std::vector<FeatureResult> InferenceWorker::take_ready() {
   return std::exchange(ready_, {});
 }
 
+FeatureResult InferenceWorker::next_result() {
+  std::unique_lock lock(mutex_);
+  done_cv_.wait(lock, [&] { return !ready_.empty(); });
+  FeatureResult r = std::move(ready_.front());
+  ready_.erase(ready_.begin());
+  return r;
+}
+
 std::vector<FeatureResult> InferenceWorker::wait_all() {
   std::unique_lock lock(mutex_);
   done_cv_.wait(lock, [&] { return queue_.empty() && busy_ == 0; });

@@ -27,7 +27,8 @@ struct FeatureResult {
 
 enum class QueuePolicy {
   kDropWhenFull,  // live operation: a frame that finds the queue full is dropped and counted
-  kBacklog,       // replay: it waits in the caller's backlog and is submitted later; none is lost
+  kReplay,        // replay: every frame is extracted (ahead of time) and fused at its place in the
+                  // time line, so the map does not depend on timing and no frame is lost
 };
 
 struct InferenceStats {
@@ -46,6 +47,7 @@ class InferenceWorker {
   bool try_submit(ImageJob job);
   void count_dropped() { ++stats_.dropped_queue_full; }
   std::vector<FeatureResult> take_ready();   // never blocks
+  FeatureResult next_result();               // blocks; results come in submission order
   std::vector<FeatureResult> wait_all();     // blocks until every submitted job is done
   std::size_t in_flight() const;
   InferenceStats stats() const;

@@ -3,7 +3,7 @@
 #include <fmt/format.h>
 
 #include <chrono>
-#include <deque>
+#include <optional>
 
 #include "slamvdb/core/error.hpp"
 #include "slamvdb/io/scan_io.hpp"
@@ -62,50 +62,57 @@ SemanticMap build_map(const Sequence& seq, FeatureSource* features, const Pipeli
   report.scans_total = num_scans;
   report.images_total = features ? num_images : 0;
 
-  auto fuse_results = [&](std::vector<FeatureResult> results) {
-    for (FeatureResult& r : results) {
-      const auto& rec = r.job.record;
-      const std::string name = (rec.rgb.empty() ? rec.labels : rec.rgb).filename().string();
-      if (!r.error.empty()) {
-        ++report.images_failed;
-        report.problems.push_back(fmt::format("image {}: {}", name, r.error));
-        continue;
-      }
-      const int dim = options.map.semantic.dim;
-      if (r.features.dim != dim)
-        throw Error(fmt::format("features for image {} have {} channels but the map stores {}-d embeddings "
-                                "(set --dim to match the encoder)", name, r.features.dim, dim));
-      const auto t0 = Clock::now();
-      const CameraModel camera = seq.camera.scaled(r.features.width, r.features.height);
-      add(report.fusion, fusion.fuse(submap.map, r.features, camera, T_submap_world * r.job.T_world_camera));
-      report.seconds_fusion += seconds_since(t0);
-      ++report.images_fused;
+  auto fuse = [&](FeatureResult& r) {
+    const auto& rec = r.job.record;
+    const std::string name = (rec.rgb.empty() ? rec.labels : rec.rgb).filename().string();
+    if (!r.error.empty()) {
+      ++report.images_failed;
+      report.problems.push_back(fmt::format("image {}: {}", name, r.error));
+      return;
+    }
+    const int dim = options.map.semantic.dim;
+    if (r.features.dim != dim)
+      throw Error(fmt::format("features for image {} have {} channels but the map stores {}-d embeddings "
+                              "(set --dim to match the encoder)", name, r.features.dim, dim));
+    const auto t0 = Clock::now();
+    const CameraModel camera = seq.camera.scaled(r.features.width, r.features.height);
+    add(report.fusion, fusion.fuse(submap.map, r.features, camera, T_submap_world * r.job.T_world_camera));
+    report.seconds_fusion += seconds_since(t0);
+    ++report.images_fused;
+  };
+
+  // Camera poses are known up front (ground truth), so images outside the pose range are found
+  // before any work is queued.
+  std::vector<std::optional<Pose>> camera_poses(num_images);
+  for (std::size_t i = 0; i < num_images; ++i) {
+    if (const auto p = seq.poses.at(seq.images[i].stamp)) camera_poses[i] = *p * seq.T_lidar_camera;
+  }
+  std::unique_ptr<InferenceWorker> worker;
+  if (features) worker = std::make_unique<InferenceWorker>(*features, options.queue_capacity);
+  const bool replay = options.policy == QueuePolicy::kReplay;
+  // Replay: images are queued ahead of the time line (the worker extracts while scans integrate)
+  // and each is fused right after the scans that precede it, so the result is deterministic.
+  std::size_t next_submit = 0;
+  auto top_up = [&] {
+    for (; next_submit < num_images; ++next_submit) {
+      if (!camera_poses[next_submit]) continue;
+      if (!worker->try_submit({next_submit, seq.images[next_submit], *camera_poses[next_submit]})) break;
     }
   };
 
-  std::unique_ptr<InferenceWorker> worker;
-  if (features) worker = std::make_unique<InferenceWorker>(*features, options.queue_capacity);
-  std::deque<ImageJob> backlog;
-  auto submit_backlog = [&] {
-    while (!backlog.empty() && worker->try_submit(backlog.front())) backlog.pop_front();
-  };
-
   std::size_t si = 0, ii = 0;
-  while (si < num_scans || ii < num_images) {
-    const bool image_next = features && ii < num_images && (si >= num_scans || seq.images[ii].stamp < seq.scans[si].stamp);
-    if (!features && si >= num_scans) break;
+  while (si < num_scans || (worker && ii < num_images)) {
+    const bool image_next = worker && ii < num_images && (si >= num_scans || seq.images[ii].stamp < seq.scans[si].stamp);
     if (image_next) {
-      const ImageRecord& rec = seq.images[ii];
-      const auto pose = seq.poses.at(rec.stamp);
-      if (!pose) {
+      if (!camera_poses[ii]) {
         ++report.images_outside_pose_range;
-        report.problems.push_back(fmt::format("image at {:.3f} s: outside the pose time range", rec.stamp));
-      } else {
-        ImageJob job{ii, rec, *pose * seq.T_lidar_camera};
-        if (!backlog.empty() || !worker->try_submit(job)) {
-          if (options.policy == QueuePolicy::kBacklog) backlog.push_back(std::move(job));
-          else worker->count_dropped();
-        }
+        report.problems.push_back(fmt::format("image at {:.3f} s: outside the pose time range", seq.images[ii].stamp));
+      } else if (replay) {
+        top_up();
+        FeatureResult r = worker->next_result();
+        fuse(r);
+      } else if (!worker->try_submit({ii, seq.images[ii], *camera_poses[ii]})) {
+        worker->count_dropped();
       }
       ++ii;
     } else {
@@ -129,17 +136,12 @@ SemanticMap build_map(const Sequence& seq, FeatureSource* features, const Pipeli
       ++si;
       if (progress) progress(si, num_scans);
     }
-    if (worker) {
-      submit_backlog();
-      fuse_results(worker->take_ready());
-    }
+    if (worker && replay) top_up();
+    if (worker && !replay)
+      for (FeatureResult& r : worker->take_ready()) fuse(r);
   }
   if (worker) {
-    while (!backlog.empty() || worker->in_flight() > 0) {
-      submit_backlog();
-      fuse_results(worker->wait_all());
-    }
-    fuse_results(worker->take_ready());
+    for (FeatureResult& r : worker->wait_all()) fuse(r);
     report.inference = worker->stats();
   }
   report.seconds_total = seconds_since(t_start);

@@ -16,7 +16,7 @@ struct PipelineOptions {
   MapParams map;
   FusionParams fusion;
   std::size_t queue_capacity = 4;
-  QueuePolicy policy = QueuePolicy::kBacklog;
+  QueuePolicy policy = QueuePolicy::kReplay;
   std::size_t max_scans = 0;  // 0: all
 };
 

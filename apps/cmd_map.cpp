@@ -1,0 +1,122 @@
+// `slamvdb map`: replays a dataset (RELLIS-3D or KITTI layout) into a semantic voxel map file.
+#include <fmt/format.h>
+#include <spdlog/spdlog.h>
+
+#include <memory>
+#include <optional>
+#include <regex>
+
+#include "command_registry.hpp"
+#include "progress.hpp"
+#include "slamvdb/core/error.hpp"
+#include "slamvdb/inference/simulated_encoders.hpp"
+#include "slamvdb/io/map_store.hpp"
+#include "slamvdb/io/sequence_reader.hpp"
+#include "slamvdb/pipeline/mapping_pipeline.hpp"
+
+namespace slamvdb::cli {
+namespace {
+
+struct Options {
+  std::string dataset, output;
+  std::string features = "simulated";
+  std::string precision = "fp16";
+  std::string feature_size = "192x128";
+  std::string distortion;
+  PipelineOptions pipeline;
+  SimulatedEncoderConfig sim;
+  bool realtime = false;
+};
+
+std::array<double, 5> parse_distortion(const std::string& text) {
+  std::istringstream in(text);
+  std::array<double, 5> d{};
+  for (double& v : d)
+    if (!(in >> v)) throw Error(fmt::format("--distortion '{}' needs five numbers: k1 k2 p1 p2 k3", text));
+  return d;
+}
+
+std::unique_ptr<FeatureSource> make_feature_source(const Options& opt, const Sequence& seq) {
+  if (opt.features == "none") return nullptr;
+  if (opt.features == "precomputed") {
+    for (const auto& img : seq.images)
+      if (!img.features.empty()) return std::make_unique<NpyFeatureSource>("precomputed:" + seq.root.string());
+    throw Error(fmt::format("--features precomputed: no features/<image>.npy files in {}", seq.root.string()));
+  }
+  if (opt.features == "simulated") {
+    SimulatedEncoderConfig sim = opt.sim;
+    static const std::regex kSize(R"((\d{1,5})[xX](\d{1,5}))");
+    std::smatch m;
+    if (!std::regex_match(opt.feature_size, m, kSize))
+      throw Error(fmt::format("--feature-size '{}' is not WIDTHxHEIGHT", opt.feature_size));
+    sim.width = std::stoi(m[1]);
+    sim.height = std::stoi(m[2]);
+    sim.dim = opt.pipeline.map.semantic.dim;
+    spdlog::warn("features are SIMULATED from the 2D label images (no network): {}", simulated_model_id(sim));
+    return std::make_unique<EncoderFeatureSource>(std::make_unique<SimulatedDenseEncoder>(sim),
+                                                  EncoderFeatureSource::Input::kLabels);
+  }
+  throw Error(fmt::format("--features '{}': expected simulated, precomputed or none", opt.features));
+}
+
+void run(Options opt) {
+  ReadOptions read_options;
+  if (!opt.distortion.empty()) read_options.distortion = parse_distortion(opt.distortion);
+  const Sequence seq = read_sequence(opt.dataset, read_options);
+  fmt::print("sequence {} ({} layout): {} scans, {} images\n", seq.root.string(), seq.layout, seq.scans.size(),
+             seq.images.size());
+  for (const auto& note : seq.notes) fmt::print("  note: {}\n", note);
+  opt.pipeline.map.semantic.precision = precision_from_string(opt.precision);
+  opt.pipeline.policy = opt.realtime ? QueuePolicy::kDropWhenFull : QueuePolicy::kReplay;
+  const auto source = make_feature_source(opt, seq);
+
+  std::optional<ProgressBar> bar;
+  PipelineReport report;
+  SemanticMap map = build_map(seq, source.get(), opt.pipeline, report, [&](std::size_t done, std::size_t total) {
+    if (!bar) bar.emplace("map", total);
+    bar->update(done);
+  });
+  if (bar) bar->finish();
+  fmt::print("{}\n", report.summary());
+  save_map(opt.output, map);
+  fmt::print("map saved to {}: {} occupied voxels, {} semantic voxels ({} {}-d), {:.1f} MB in memory\n", opt.output,
+             map.num_occupied_voxels(), map.num_semantic_voxels(), opt.precision, map.params.semantic.dim,
+             map.memory_bytes() / 1e6);
+}
+
+void add(CLI::App& root) {
+  auto opt = std::make_shared<Options>();
+  auto* cmd = root.add_subcommand("map",
+                                  "Build a semantic voxel map from a dataset directory (RELLIS-3D or KITTI layout) "
+                                  "with its ground-truth poses, and save it as one map file");
+  cmd->add_option("dataset", opt->dataset, "Sequence directory")->required()->check(CLI::ExistingDirectory);
+  cmd->add_option("-o,--output", opt->output, "Map file to write (replaced atomically)")->required();
+  cmd->add_option("--features", opt->features,
+                  "Where image features come from: 'simulated' (SIMULATED from the 2D label images, no network), "
+                  "'precomputed' (features/<image>.npy, C x H x W), 'none' (geometry only)")
+      ->capture_default_str();
+  auto& m = opt->pipeline.map;
+  cmd->add_option("--voxel-size", m.occupancy.voxel_size, "Voxel edge in metres")->capture_default_str();
+  cmd->add_option("--dim", m.semantic.dim, "Embedding dimension")->capture_default_str();
+  cmd->add_option("--precision", opt->precision, "Embedding storage: fp16 or fp32")->capture_default_str();
+  cmd->add_option("--min-range", m.occupancy.min_point_range, "Drop returns closer than this (m)")->capture_default_str();
+  cmd->add_option("--max-range", m.occupancy.max_point_range, "Returns farther only clear space (m)")->capture_default_str();
+  cmd->add_option("--max-clearing-range", m.occupancy.max_clearing_range, "Clear space along the first metres of each ray")
+      ->capture_default_str();
+  cmd->add_option("--max-depth", opt->pipeline.fusion.max_depth, "Fuse features into voxels up to this distance (m)")
+      ->capture_default_str();
+  cmd->add_option("--max-scans", opt->pipeline.max_scans, "Map only the first N scans (0: all)")->capture_default_str();
+  cmd->add_option("--distortion", opt->distortion, "Camera plumb_bob coefficients 'k1 k2 p1 p2 k3' (overrides the dataset)");
+  cmd->add_option("--feature-size", opt->feature_size, "Simulated feature map size WIDTHxHEIGHT")->capture_default_str();
+  cmd->add_option("--sim-seed", opt->sim.seed, "Seed of the simulated encoder")->capture_default_str();
+  cmd->add_option("--sim-confusion", opt->sim.confusion_rate, "Simulated per-view confusion rate")->capture_default_str();
+  cmd->add_option("--queue", opt->pipeline.queue_capacity, "Inference queue length")->capture_default_str();
+  cmd->add_flag("--realtime", opt->realtime,
+                "Drop (and count) frames that find the inference queue full, as on a robot; default: replay every frame");
+  cmd->callback([opt] { run(*opt); });
+}
+
+const RegisterCommand reg{add};
+
+}  // namespace
+}  // namespace slamvdb::cli
