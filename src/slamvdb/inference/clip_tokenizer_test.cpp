@@ -243,7 +243,7 @@ TEST(ClipTokenizer, CliPrintsIds) {
 // ~200 generated texts (vocabulary words, punctuation, digits, emoji, accents, CJK, entities,
 // odd whitespace and case) compared with the Python oracle, when python3 has `regex`.
 TEST(ClipTokenizer, MatchesPythonOracleOnGeneratedTexts) {
-  if (std::system("python3 -c 'import regex' >/dev/null 2>&1") != 0)
+  if (std::system(SLAMVDB_PYTHON " -c 'import regex' >/dev/null 2>&1") != 0)
     GTEST_SKIP() << "python3 with the regex module is not available";
   const std::vector<std::string> pieces = {
       ",", ".", "!", "?", "...", "-", "'", "\"", "(", ")", "&", "/", "#", "@", ":", ";", "'s", "'LL", "'ſ", "''",
@@ -272,7 +272,7 @@ TEST(ClipTokenizer, MatchesPythonOracleOnGeneratedTexts) {
   }
   const fs::path in = temp_path("oracle_in.json"), out = temp_path("oracle_out.json");
   std::ofstream(in) << nlohmann::json(texts).dump(-1, ' ', true);
-  const std::string command = "python3 '" + kOracle.string() + "' --vocab '" + kVocab.string() + "' --json < '" +
+  const std::string command = std::string(SLAMVDB_PYTHON) + " '" + kOracle.string() + "' --vocab '" + kVocab.string() + "' --json < '" +
                               in.string() + "' > '" + out.string() + "'";
   ASSERT_EQ(std::system(command.c_str()), 0) << command;
   const auto expected = nlohmann::json::parse(std::ifstream(out)).get<std::vector<std::vector<int>>>();

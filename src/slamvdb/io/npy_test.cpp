@@ -141,10 +141,9 @@ TEST(Npy, BadFilesAreErrorsThatSayWhy) {
   EXPECT_NE(error_of(tmp.path / "missing.npy").find("missing.npy"), std::string::npos);
 }
 
-// A python interpreter that has numpy, if any (the system one may differ from the first on PATH).
+// Debian's interpreter (python3-numpy is a set-up dependency), if it has numpy.
 std::optional<std::string> python_with_numpy() {
-  for (const char* python : {"python3", "/usr/bin/python3"})
-    if (std::system(fmt::format("{} -c 'import numpy' > /dev/null 2>&1", python).c_str()) == 0) return python;
+  if (std::system(SLAMVDB_PYTHON " -c 'import numpy' > /dev/null 2>&1") == 0) return std::string(SLAMVDB_PYTHON);
   return std::nullopt;
 }
 
