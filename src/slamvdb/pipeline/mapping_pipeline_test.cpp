@@ -10,6 +10,8 @@
 #include "slamvdb/core/error.hpp"
 #include "slamvdb/core/ontology.hpp"
 #include "slamvdb/inference/simulated_encoders.hpp"
+#include "slamvdb/io/image_io.hpp"
+#include "slamvdb/io/npy.hpp"
 #include "slamvdb/io/scan_io.hpp"
 #include "slamvdb/io/sequence_reader.hpp"
 #include "slamvdb/synth/sequence_writer.hpp"
@@ -248,6 +250,51 @@ TEST_F(MappingPipelineTest, Fp16StorageKeepsTheFp32Answer) {
   EXPECT_GT(min_cos, 0.9999);
   EXPECT_GT(agreement, 0.999);
   EXPECT_LT(b.bytes_per_entry(), 0.6 * a.bytes_per_entry());
+}
+
+}  // namespace
+}  // namespace slamvdb
+
+namespace slamvdb {
+namespace {
+
+// Features computed offline and stored as features/<image stem>.npy (C x H x W) give the same
+// map as computing them in the pipeline.
+TEST_F(MappingPipelineTest, PrecomputedNpyFeaturesGiveTheSameMap) {
+  const fs::path copy = dir_.parent_path() / (dir_.filename().string() + "_npy");
+  fs::remove_all(copy);
+  fs::copy(dir_, copy, fs::copy_options::recursive);
+  SimulatedDenseEncoder encoder(encoder_config());
+  const Sequence original = read_sequence(copy);
+  fs::create_directories(copy / "features");
+  for (const auto& img : original.images)
+    write_feature_npy(copy / "features" / (img.labels.stem().string() + ".npy"),
+                      encoder.encode(load_image_frame(img, false, true)));
+  const Sequence seq = read_sequence(copy);
+  ASSERT_FALSE(seq.images.front().features.empty());
+  PipelineOptions o = options();
+  o.max_scans = 20;
+  NpyFeatureSource npy("precomputed-test");
+  EncoderFeatureSource live(std::make_unique<SimulatedDenseEncoder>(encoder_config()),
+                            EncoderFeatureSource::Input::kLabels);
+  PipelineReport ra, rb;
+  const SemanticMap a = build_map(seq, &npy, o, ra);
+  const SemanticMap b = build_map(seq, &live, o, rb);
+  EXPECT_GT(ra.images_fused, 5u);
+  EXPECT_EQ(ra.images_fused, rb.images_fused);
+  const auto& la = a.submaps[0].map.semantics();
+  const auto& lb = b.submaps[0].map.semantics();
+  ASSERT_EQ(la.size(), lb.size());
+  std::vector<float> va(la.dim()), vb(lb.dim());
+  la.for_each([&](const VoxelKey& k, SemanticLayer::Slot s) {
+    const auto t = lb.find(k);
+    ASSERT_TRUE(t);
+    la.read(s, va.data());
+    lb.read(*t, vb.data());
+    EXPECT_EQ(va, vb);
+  });
+  EXPECT_EQ(a.info.model_id, "precomputed-test");
+  fs::remove_all(copy);
 }
 
 }  // namespace
