@@ -1,0 +1,221 @@
+#include "slamvdb/synth/sequence_writer.hpp"
+
+#include <fmt/format.h>
+#include <tbb/parallel_for.h>
+
+#include <bit>
+#include <fstream>
+#include <mutex>
+#include <nlohmann/json.hpp>
+#include <opencv2/imgcodecs.hpp>
+
+#include "slamvdb/core/error.hpp"
+#include "slamvdb/core/ontology.hpp"
+#include "slamvdb/synth/camera_sim.hpp"
+
+namespace slamvdb::synth {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+static_assert(std::endian::native == std::endian::little, "the .bin/.label files are written little-endian as-is");
+
+constexpr std::array<const char*, 5> kTopFiles = {"poses.txt", "times.txt", "camera_info.txt", "transforms.yaml",
+                                                  "synth.json"};
+
+void prepare_output(const fs::path& out, bool overwrite) {
+  std::error_code ec;
+  if (fs::exists(out, ec) && !fs::is_directory(out, ec))
+    throw Error(fmt::format("output {} exists and is not a directory", out.string()));
+  if (fs::exists(out, ec) && !fs::is_empty(out, ec)) {
+    if (!overwrite)
+      throw Error(
+          fmt::format("output directory {} is not empty; choose an empty one or pass --force to replace "
+                      "the sequence in it",
+                      out.string()));
+    for (const char* dir : {kLidarDir, kLidarLabelDir, kImageDir, kImageLabelDir}) fs::remove_all(out / dir);
+    for (const char* file : kTopFiles) fs::remove(out / file);
+  }
+  for (const char* dir : {kLidarDir, kLidarLabelDir, kImageDir, kImageLabelDir}) {
+    fs::create_directories(out / dir, ec);
+    if (ec) throw Error(fmt::format("cannot create {}: {}", (out / dir).string(), ec.message()));
+  }
+}
+
+void write_bytes(const fs::path& path, const void* data, std::size_t size) {
+  std::ofstream f(path, std::ios::binary);
+  f.write(static_cast<const char*>(data), static_cast<std::streamsize>(size));
+  if (!f) throw Error(fmt::format("cannot write {}", path.string()));
+}
+
+void write_text(const fs::path& path, const std::string& text) { write_bytes(path, text.data(), text.size()); }
+
+void write_image(const fs::path& path, const cv::Mat& image, const std::vector<int>& params) {
+  bool ok = false;
+  try {
+    ok = cv::imwrite(path.string(), image, params);
+  } catch (const cv::Exception& e) {
+    throw Error(fmt::format("cannot write {}: {}", path.string(), e.what()));
+  }
+  if (!ok) throw Error(fmt::format("cannot write {}", path.string()));
+}
+
+std::string pose_line(const Pose& T) {
+  const Eigen::Matrix<double, 3, 4> M = T.matrix().topRows<3>();
+  std::string line;
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 4; ++c) line += fmt::format("{}{:.9e}", r + c == 0 ? "" : " ", M(r, c));
+  return line + "\n";
+}
+
+std::string transforms_yaml(const Pose& T_lidar_camera) {
+  const Eigen::Quaterniond q(T_lidar_camera.linear());
+  const Vec3d t = T_lidar_camera.translation();
+  return fmt::format(
+      "os1_cloud_node-pylon_camera_node:\n  q:\n    w: {:.8f}\n    x: {:.8f}\n    y: {:.8f}\n    z: {:.8f}\n"
+      "  t:\n    x: {:.8f}\n    y: {:.8f}\n    z: {:.8f}\n",
+      q.w(), q.x(), q.y(), q.z(), t.x(), t.y(), t.z());
+}
+
+nlohmann::json config_json(const SynthConfig& c) {
+  return {{"length_m", c.length_m},
+          {"speed_mps", c.speed_mps},
+          {"revisit_overlap_m", c.revisit_overlap_m},
+          {"min_loop_m", c.min_loop_m},
+          {"sensor_height_m", c.sensor_height_m},
+          {"lidar_rate_hz", c.lidar_rate_hz},
+          {"camera_rate_hz", c.camera_rate_hz},
+          {"camera_offset_s", c.camera_offset_s},
+          {"camera_jitter_s", c.camera_jitter_s},
+          {"camera_max_range_m", c.camera_max_range_m},
+          {"image_width", c.image_width},
+          {"image_height", c.image_height},
+          {"jpeg_quality", c.jpeg_quality},
+          {"keep_no_return", c.keep_no_return},
+          {"base_stamp", c.base_stamp},
+          {"lidar",
+           {{"beams", c.lidar.beams},
+            {"columns", c.lidar.columns},
+            {"fov_up_deg", c.lidar.fov_up_deg},
+            {"fov_down_deg", c.lidar.fov_down_deg},
+            {"min_range_m", c.lidar.min_range},
+            {"max_range_m", c.lidar.max_range},
+            {"range_noise_sigma_m", c.lidar.range_noise_sigma}}}};
+}
+
+nlohmann::json class_list(const SynthWorld& world, const SynthSummary& summary) {
+  std::vector<uint16_t> ids = world.scene->classes();
+  ids.push_back(kSkyClass);
+  std::sort(ids.begin(), ids.end());
+  nlohmann::json classes = nlohmann::json::array();
+  for (uint16_t id : ids) {
+    const FineClass* c = find_fine_class(id);
+    classes.push_back(
+        {{"id", id}, {"name", c ? std::string(c->name) : "unknown"}, {"lidar_points", summary.points_per_class[id]}});
+  }
+  return classes;
+}
+
+}  // namespace
+
+std::string camera_frame_stem(std::size_t frame, int64_t stamp_ms) {
+  return fmt::format("frame{:06d}-{}_{:03d}", frame, stamp_ms / 1000, stamp_ms % 1000);
+}
+
+SynthSummary write_synthetic_sequence(const SynthConfig& config, const fs::path& out, bool overwrite,
+                                      const SynthProgress& progress) {
+  const SynthWorld world = build_synthetic_world(config);
+  prepare_output(out, overwrite);
+  const std::size_t scans = world.scan_stamps.size(), images = world.camera_stamps_ms.size();
+
+  std::string poses, times;
+  for (std::size_t i = 0; i < scans; ++i) {
+    poses += pose_line(world.scan_poses[i]);
+    times += fmt::format("{:.6f}\n", world.scan_stamps[i]);
+  }
+  write_text(out / "poses.txt", poses);
+  write_text(out / "times.txt", times);
+  const CameraModel& cam = world.camera;
+  const auto& k = cam.distortion;
+  write_text(out / "camera_info.txt", fmt::format("{:.6f} {:.6f} {:.6f} {:.6f}\n{} {} {} {} {}\n", cam.fx, cam.fy,
+                                                  cam.cx, cam.cy, k[0], k[1], k[2], k[3], k[4]));
+  write_text(out / "transforms.yaml", transforms_yaml(world.T_lidar_camera));
+
+  const std::vector<Vec3d> rays = config.lidar.ray_directions();
+  const CameraSimulator camera(world.camera);
+  const std::vector<int> jpeg_params = {cv::IMWRITE_JPEG_QUALITY, config.jpeg_quality};
+  SynthSummary summary;
+  summary.scans = scans;
+  summary.images = images;
+  summary.path_length_m = world.path_length_m;
+  summary.loop_perimeter_m = world.trajectory.path().perimeter();
+  std::mutex mutex;
+  std::size_t done = 0;
+  tbb::parallel_for(std::size_t{0}, scans + images, [&](std::size_t task) {
+    std::array<std::size_t, 256> per_class{};
+    std::size_t points = 0, no_returns = 0;
+    if (task < scans) {
+      const SimulatedScan scan = simulate_scan(*world.scene, config.lidar, rays, world.scan_poses[task], config.seed,
+                                               task, config.keep_no_return);
+      const std::string stem = fmt::format("{:06d}", task);
+      write_bytes(out / kLidarDir / (stem + ".bin"), scan.points.data(), scan.points.size() * sizeof(Eigen::Vector4f));
+      const std::vector<uint32_t> labels(scan.labels.begin(), scan.labels.end());
+      write_bytes(out / kLidarLabelDir / (stem + ".label"), labels.data(), labels.size() * sizeof(uint32_t));
+      for (std::size_t i = 0; i < scan.labels.size(); ++i)
+        if (scan.points[i].head<3>().squaredNorm() > 0.0f) ++per_class[scan.labels[i]];
+      points = scan.points.size();
+      no_returns = scan.no_returns;
+    } else {
+      const std::size_t frame = task - scans;
+      const int64_t ms = world.camera_stamps_ms[frame];
+      const RenderedFrame rendered =
+          camera.render(*world.scene, world.T_world_camera(ms / 1000.0), config.camera_max_range_m);
+      const std::string stem = camera_frame_stem(frame, ms);
+      write_image(out / kImageDir / (stem + ".jpg"), rendered.bgr, jpeg_params);
+      write_image(out / kImageLabelDir / (stem + ".png"), rendered.labels, {});
+    }
+    const std::lock_guard lock(mutex);
+    for (std::size_t c = 0; c < per_class.size(); ++c) summary.points_per_class[c] += per_class[c];
+    summary.points += points;
+    summary.no_returns += no_returns;
+    ++done;
+    if (progress) progress(done, scans + images);
+  });
+
+  nlohmann::json meta = {
+      {"simulated", true},
+      {"generator", "slamvdb synth (simulated off-road sequence, RELLIS-3D layout)"},
+      {"seed", config.seed},
+      {"parameters", config_json(config)},
+      {"counts",
+       {{"scans", scans},
+        {"images", images},
+        {"points_written", summary.points},
+        {"no_return_rays", summary.no_returns},
+        {"no_returns_written_as_zero_points", config.keep_no_return}}},
+      {"path_length_m", summary.path_length_m},
+      {"loop_perimeter_m", summary.loop_perimeter_m},
+      {"first_scan_stamp", world.scan_stamps.front()},
+      {"last_scan_stamp", world.scan_stamps.back()},
+      {"classes", class_list(world, summary)},
+      {"image_size", {world.camera.width, world.camera.height}},
+      {"notes",
+       {"LiDAR points are column-major like RELLIS-3D's OS1 files: ray = column * beams + beam; dropped no-return "
+        "rays leave gaps in that order",
+        "each scan is cast from the pose at its stamp (no motion distortion within the sweep)",
+        "the LiDAR is mounted turned 180 deg about z (x backwards) like RELLIS-3D's OS1; the camera looks along its -x",
+        "intensity is on RELLIS-3D's scale (raw / 65535, about 0..0.012)",
+        "camera stamps are whole milliseconds, offset and jittered so none equals a scan stamp",
+        "poses are ground truth T_world_lidar; world z is up",
+        "all objects are static (vehicles and people do not move)",
+        "RGB colours are a natural-looking palette, not the RELLIS-3D label colours"}}};
+  write_text(out / "synth.json", meta.dump(2) + "\n");
+
+  for (const char* dir : {kLidarDir, kLidarLabelDir, kImageDir, kImageLabelDir})
+    for (const auto& entry : fs::directory_iterator(out / dir)) summary.bytes += entry.file_size();
+  for (const char* file : kTopFiles) summary.bytes += fs::file_size(out / file);
+  return summary;
+}
+
+}  // namespace slamvdb::synth

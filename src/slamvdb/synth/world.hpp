@@ -1,0 +1,55 @@
+#pragma once
+// Everything a simulated sequence is made from, in memory: the scene, the ground-truth drive, the
+// sensor models and every scan and camera time stamp. The writer turns it into files; tests and
+// the pipeline can use it directly.
+#include <cstdint>
+#include <memory>
+#include <vector>
+
+#include "slamvdb/fusion/camera_model.hpp"
+#include "slamvdb/synth/lidar_sim.hpp"
+#include "slamvdb/synth/scene.hpp"
+#include "slamvdb/synth/trajectory_sim.hpp"
+
+namespace slamvdb::synth {
+
+struct SynthConfig {
+  uint64_t seed = 1;
+  double length_m = 320.0;  // driven path length (at least)
+  double speed_mps = 5.0;
+  double revisit_overlap_m = 25.0;  // the loop closes after length - overlap; the drive goes on past its start
+  double min_loop_m = 120.0;        // shortest loop built, so short test drives still see a full scene
+  double sensor_height_m = 1.5;
+  double lidar_rate_hz = 10.0;
+  double camera_rate_hz = 5.0;
+  double camera_offset_s = 0.037;  // first image after the first scan; images are not aligned to scans
+  double camera_jitter_s = 0.002;  // uniform +- jitter per image
+  double camera_max_range_m = 200.0;
+  int image_width = 640, image_height = 400;
+  int jpeg_quality = 90;
+  bool keep_no_return = false;  // write no-return rays as all-zero points (label 0) like the real sensor
+  double base_stamp = 1700000000.0;
+  LidarModel lidar;
+
+  void validate() const;  // throws Error naming the bad parameter
+};
+
+struct SynthWorld {
+  SynthConfig config;
+  std::shared_ptr<const Scene> scene;
+  SimulatedTrajectory trajectory;
+  CameraModel camera;  // at the written image size
+  Pose T_lidar_camera = Pose::Identity();
+  std::vector<double> scan_stamps;        // absolute seconds, LiDAR rate
+  std::vector<Pose> scan_poses;           // ground truth T_world_lidar at scan_stamps
+  std::vector<int64_t> camera_stamps_ms;  // absolute milliseconds (the file names' resolution)
+  double path_length_m = 0.0;             // along the scan positions
+
+  // Ground truth at any time within the drive (continuous, not interpolated between scans).
+  Pose T_world_lidar(double stamp) const { return trajectory.T_world_lidar(stamp - config.base_stamp); }
+  Pose T_world_camera(double stamp) const { return T_world_lidar(stamp) * T_lidar_camera; }
+};
+
+SynthWorld build_synthetic_world(const SynthConfig& config);
+
+}  // namespace slamvdb::synth
