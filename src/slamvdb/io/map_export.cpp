@@ -1,0 +1,273 @@
+#include "slamvdb/io/map_export.hpp"
+
+#include <fmt/format.h>
+
+#include <Eigen/Eigenvalues>
+#include <algorithm>
+#include <bit>
+#include <cerrno>
+#include <cmath>
+#include <cstring>
+#include <fstream>
+#include <iterator>
+#include <limits>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+#include <tuple>
+
+#include "slamvdb/core/error.hpp"
+
+namespace slamvdb {
+namespace fs = std::filesystem;
+namespace {
+
+static_assert(std::endian::native == std::endian::little, "binary PLY is written in host byte order");
+
+// Value at quantile q of v (v is reordered).
+float quantile(std::vector<float>& v, double q) {
+  const auto k = static_cast<std::ptrdiff_t>(std::lround(q * static_cast<double>(v.size() - 1)));
+  std::nth_element(v.begin(), v.begin() + k, v.end());
+  return v[static_cast<std::size_t>(k)];
+}
+
+uint8_t to_channel(float t) { return static_cast<uint8_t>(std::lround(std::clamp(t, 0.0f, 1.0f) * 255.0f)); }
+
+struct SemanticRef {
+  const Submap* submap;
+  VoxelKey key;
+  SemanticLayer::Slot slot;
+};
+
+// Every semantic entry in (submap, key) order, independent of hash-table order.
+std::vector<SemanticRef> semantic_entries_in_key_order(const SemanticMap& map) {
+  std::vector<SemanticRef> refs;
+  refs.reserve(map.num_semantic_voxels());
+  for (const Submap& s : map.submaps)
+    s.map.semantics().for_each([&](const VoxelKey& k, SemanticLayer::Slot slot) { refs.push_back({&s, k, slot}); });
+  std::sort(refs.begin(), refs.end(), [](const SemanticRef& a, const SemanticRef& b) {
+    return std::tie(a.submap, a.key.z(), a.key.y(), a.key.x()) < std::tie(b.submap, b.key.z(), b.key.y(), b.key.x());
+  });
+  return refs;
+}
+
+}  // namespace
+
+Rgb PcaColouring::colour(const float* embedding) const {
+  const Eigen::Vector3f p = components * (Eigen::Map<const Eigen::VectorXf>(embedding, mean.size()) - mean);
+  Rgb rgb;
+  for (int c = 0; c < 3; ++c) rgb[c] = hi[c] > lo[c] ? to_channel((p[c] - lo[c]) / (hi[c] - lo[c])) : 128;
+  return rgb;
+}
+
+PcaColouring fit_pca_colouring(const SemanticMap& map, std::size_t max_samples) {
+  const std::vector<SemanticRef> refs = semantic_entries_in_key_order(map);
+  if (refs.empty()) throw Error("the map has no semantic voxels to fit a PCA colouring on");
+  const int dim = map.params.semantic.dim;
+  const std::size_t stride = (refs.size() + std::max<std::size_t>(max_samples, 1) - 1) / std::max<std::size_t>(max_samples, 1);
+  const auto m = static_cast<Eigen::Index>((refs.size() + stride - 1) / stride);
+  Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> X(m, dim);
+  for (Eigen::Index i = 0; i < m; ++i) {
+    const SemanticRef& r = refs[static_cast<std::size_t>(i) * stride];
+    r.submap->map.semantics().read(r.slot, X.row(i).data());
+  }
+  PcaColouring pca;
+  pca.mean = X.colwise().mean().transpose();
+  X.rowwise() -= pca.mean.transpose();
+  const Eigen::MatrixXd covariance = (X.transpose() * X).cast<double>() / static_cast<double>(std::max<Eigen::Index>(m - 1, 1));
+  const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> solver(covariance);  // eigenvalues ascending
+  pca.components.setZero(3, dim);
+  for (int c = 0; c < std::min(3, dim); ++c) {
+    Eigen::VectorXd axis = solver.eigenvectors().col(dim - 1 - c);
+    Eigen::Index largest;
+    axis.cwiseAbs().maxCoeff(&largest);
+    if (axis[largest] < 0) axis = -axis;  // an eigenvector's sign is arbitrary; fix it for stable colours
+    pca.components.row(c) = axis.cast<float>().transpose();
+  }
+  const Eigen::MatrixXf projections = X * pca.components.transpose();  // m x 3
+  std::vector<float> values(static_cast<std::size_t>(m));
+  for (int c = 0; c < 3; ++c) {
+    Eigen::VectorXf::Map(values.data(), m) = projections.col(c);
+    pca.lo[c] = quantile(values, 0.02);
+    pca.hi[c] = quantile(values, 0.98);
+  }
+  return pca;
+}
+
+std::vector<ColouredVoxel> colour_occupied_voxels(const SemanticMap& map, const EmbeddingColour& semantic_colour) {
+  std::vector<ColouredVoxel> voxels;
+  voxels.reserve(map.num_occupied_voxels());
+  std::vector<std::size_t> grey;  // voxels without semantics, coloured once the height range is known
+  std::vector<float> embedding(static_cast<std::size_t>(map.params.semantic.dim));
+  for (const Submap& s : map.submaps) {
+    const OccupancyGrid& grid = s.map.occupancy();
+    const SemanticLayer& layer = s.map.semantics();
+    grid.for_each_occupied([&](const VoxelKey& k, float) {
+      ColouredVoxel v{(s.T_world_submap * grid.center_of(k)).cast<float>(), {0, 0, 0}, 0};
+      if (const auto slot = layer.find(k)) {
+        layer.read(*slot, embedding.data());
+        v.rgb = semantic_colour(embedding.data());
+        v.count = layer.count_at(*slot);
+      } else {
+        grey.push_back(voxels.size());
+      }
+      voxels.push_back(v);
+    });
+  }
+  if (grey.empty()) return voxels;
+  std::vector<float> heights(voxels.size());
+  for (std::size_t i = 0; i < voxels.size(); ++i) heights[i] = voxels[i].position.z();
+  const float z_lo = quantile(heights, 0.02), z_hi = quantile(heights, 0.98);
+  for (const std::size_t i : grey) {
+    const float t = z_hi > z_lo ? (voxels[i].position.z() - z_lo) / (z_hi - z_lo) : 0.5f;
+    const auto g = static_cast<uint8_t>(60 + to_channel(t) * 180 / 255);  // 60..240: never black, never white
+    voxels[i].rgb = {g, g, g};
+  }
+  return voxels;
+}
+
+std::vector<ColouredVoxel> colour_by_pca(const SemanticMap& map) {
+  if (map.num_semantic_voxels() == 0) return colour_occupied_voxels(map, [](const float*) { return Rgb{}; });
+  const PcaColouring pca = fit_pca_colouring(map);
+  return colour_occupied_voxels(map, [&](const float* e) { return pca.colour(e); });
+}
+
+void write_ply(const fs::path& path, const std::vector<ColouredVoxel>& voxels, PlyEncoding encoding,
+               const ExportProgress& progress) {
+  std::ofstream out(path, std::ios::binary | std::ios::trunc);
+  if (!out) throw Error(fmt::format("cannot write PLY file {}: {}", path.string(), std::strerror(errno)));
+  const bool ascii = encoding == PlyEncoding::kAscii;
+  out << "ply\nformat " << (ascii ? "ascii" : "binary_little_endian") << " 1.0\n"
+      << "comment slamvdb map export: occupied voxel centres in the world frame, count = semantic observations\n"
+      << "element vertex " << voxels.size() << "\n"
+      << "property float x\nproperty float y\nproperty float z\n"
+      << "property uchar red\nproperty uchar green\nproperty uchar blue\n"
+      << "property uint count\nend_header\n";
+  constexpr std::size_t kBatch = 65536;
+  constexpr std::size_t kVertexBytes = 3 * sizeof(float) + 3 + sizeof(uint32_t);
+  std::string buffer;
+  for (std::size_t begin = 0; begin < voxels.size(); begin += kBatch) {
+    const std::size_t end = std::min(voxels.size(), begin + kBatch);
+    buffer.clear();
+    for (std::size_t i = begin; i < end; ++i) {
+      const ColouredVoxel& v = voxels[i];
+      if (ascii) {
+        fmt::format_to(std::back_inserter(buffer), "{} {} {} {} {} {} {}\n", v.position.x(), v.position.y(),
+                       v.position.z(), v.rgb[0], v.rgb[1], v.rgb[2], v.count);
+      } else {
+        char vertex[kVertexBytes];
+        std::memcpy(vertex, v.position.data(), 3 * sizeof(float));
+        std::memcpy(vertex + 12, v.rgb.data(), 3);
+        std::memcpy(vertex + 15, &v.count, sizeof(uint32_t));
+        buffer.append(vertex, kVertexBytes);
+      }
+    }
+    out.write(buffer.data(), static_cast<std::streamsize>(buffer.size()));
+    if (progress) progress(end, voxels.size());
+  }
+  out.close();
+  if (!out) throw Error(fmt::format("writing PLY file {} failed: {}", path.string(), std::strerror(errno)));
+}
+
+Eigen::Vector2i BirdsEyeImage::pixel_of(double x, double y) const {
+  const int col = static_cast<int>(std::floor((x - min_xy.x()) / resolution));
+  const int row_from_bottom = static_cast<int>(std::floor((y - min_xy.y()) / resolution));
+  return {col, rgb.rows - 1 - row_from_bottom};
+}
+
+BirdsEyeImage render_birds_eye(const std::vector<ColouredVoxel>& voxels, double voxel_size,
+                               const BirdsEyeParams& params) {
+  if (voxels.empty()) throw Error("the map has no occupied voxels to draw");
+  if (!(voxel_size > 0)) throw Error(fmt::format("voxel size {} must be > 0", voxel_size));
+  Eigen::Vector2d lo = Eigen::Vector2d::Constant(std::numeric_limits<double>::infinity()), hi = -lo;
+  for (const ColouredVoxel& v : voxels) {
+    lo = lo.cwiseMin(v.position.head<2>().cast<double>());
+    hi = hi.cwiseMax(v.position.head<2>().cast<double>());
+  }
+  const double half = 0.5 * voxel_size;
+  lo.array() -= half;
+  hi.array() += half;
+  const double extent = (hi - lo).maxCoeff();
+
+  BirdsEyeImage image;
+  image.min_xy = lo;
+  if (params.resolution > 0) {
+    image.resolution = params.resolution;
+    if (extent / params.resolution > params.max_pixels)
+      throw Error(fmt::format("a resolution of {} m per pixel makes the {:.0f} m wide map {:.0f} pixels wide, more "
+                              "than {}; choose a coarser resolution",
+                              params.resolution, extent, extent / params.resolution, params.max_pixels));
+  } else {
+    image.resolution = std::max(voxel_size, extent / params.max_auto_pixels);
+  }
+  const double res = image.resolution;
+  const int width = std::max(1, static_cast<int>(std::ceil((hi.x() - lo.x()) / res - 1e-9)));
+  const int height = std::max(1, static_cast<int>(std::ceil((hi.y() - lo.y()) / res - 1e-9)));
+
+  // The pixels of one axis a voxel covers: those whose centres lie in its footprint, or the one
+  // containing its centre when pixels are larger than voxels.
+  const bool splat = res < voxel_size;
+  auto pixel_range = [&](double centre, double origin, int size) {
+    int first, last;
+    if (splat) {
+      first = static_cast<int>(std::ceil((centre - half - origin) / res - 0.5));
+      last = static_cast<int>(std::ceil((centre + half - origin) / res - 0.5)) - 1;
+    } else {
+      first = last = static_cast<int>(std::floor((centre - origin) / res));
+    }
+    return std::make_pair(std::max(first, 0), std::min(last, size - 1));
+  };
+
+  std::vector<float> top(static_cast<std::size_t>(width) * height, -std::numeric_limits<float>::infinity());
+  image.rgb = cv::Mat(height, width, CV_8UC3, cv::Scalar(params.background[0], params.background[1], params.background[2]));
+  for (const ColouredVoxel& v : voxels) {
+    const auto [c0, c1] = pixel_range(v.position.x(), lo.x(), width);
+    const auto [r0, r1] = pixel_range(v.position.y(), lo.y(), height);
+    for (int r = r0; r <= r1; ++r)
+      for (int c = c0; c <= c1; ++c) {
+        const int row = height - 1 - r;
+        float& z = top[static_cast<std::size_t>(row) * width + c];
+        if (v.position.z() <= z) continue;
+        z = v.position.z();
+        image.rgb.at<cv::Vec3b>(row, c) = {v.rgb[0], v.rgb[1], v.rgb[2]};
+      }
+  }
+
+  if (params.hill_shading) {
+    // Lambertian relief from the north-west, 45 degrees up, normalised so flat ground keeps its colour.
+    const Eigen::Vector3d light = Eigen::Vector3d(-1.0, 1.0, std::sqrt(2.0)).normalized();
+    auto height_at = [&](int row, int col, float fallback) {
+      if (row < 0 || row >= height || col < 0 || col >= width) return fallback;
+      const float z = top[static_cast<std::size_t>(row) * width + col];
+      return std::isfinite(z) ? z : fallback;
+    };
+    for (int row = 0; row < height; ++row)
+      for (int col = 0; col < width; ++col) {
+        const float z = top[static_cast<std::size_t>(row) * width + col];
+        if (!std::isfinite(z)) continue;
+        const double dzdx = (height_at(row, col + 1, z) - height_at(row, col - 1, z)) / (2 * res);
+        const double dzdy = (height_at(row - 1, col, z) - height_at(row + 1, col, z)) / (2 * res);  // rows go south
+        const double shade = Eigen::Vector3d(-dzdx, -dzdy, 1.0).normalized().dot(light) / light.z();
+        const double factor = std::clamp(0.5 + 0.5 * shade, 0.5, 1.3);
+        cv::Vec3b& p = image.rgb.at<cv::Vec3b>(row, col);
+        for (int ch = 0; ch < 3; ++ch) p[ch] = cv::saturate_cast<uint8_t>(p[ch] * factor);
+      }
+  }
+  return image;
+}
+
+void write_png(const fs::path& path, const BirdsEyeImage& image) {
+  std::string extension = path.extension().string();
+  std::transform(extension.begin(), extension.end(), extension.begin(), [](unsigned char c) { return std::tolower(c); });
+  if (extension != ".png") throw Error(fmt::format("bird's-eye image {} must have the extension .png", path.string()));
+  cv::Mat bgr;
+  cv::cvtColor(image.rgb, bgr, cv::COLOR_RGB2BGR);
+  bool ok = false;
+  try {
+    ok = cv::imwrite(path.string(), bgr);
+  } catch (const cv::Exception& e) {
+    throw Error(fmt::format("cannot write PNG file {}: {}", path.string(), e.what()));
+  }
+  if (!ok) throw Error(fmt::format("cannot write PNG file {} (is the directory there and writable?)", path.string()));
+}
+
+}  // namespace slamvdb

@@ -1,0 +1,76 @@
+#pragma once
+// Views of a SemanticMap for people: a coloured PLY point cloud and a bird's-eye PNG. Colours are
+// decided per voxel first (PCA of the embeddings here; a class colouring can supply its own) and
+// the writers only take coloured voxels.
+#include <Eigen/Core>
+#include <array>
+#include <cstdint>
+#include <filesystem>
+#include <functional>
+#include <opencv2/core.hpp>
+#include <vector>
+
+#include "slamvdb/map/semantic_map.hpp"
+
+namespace slamvdb {
+
+using Rgb = std::array<uint8_t, 3>;
+
+// One occupied voxel in the world frame.
+struct ColouredVoxel {
+  Vec3f position;  // voxel centre, world frame
+  Rgb rgb;
+  uint32_t count;  // semantic observation count, 0 without semantics
+};
+
+// The first three principal components of the map's embeddings, mapped to red, green and blue.
+struct PcaColouring {
+  Eigen::VectorXf mean;
+  Eigen::Matrix<float, 3, Eigen::Dynamic> components;  // unit axes, largest variance first
+  Eigen::Array3f lo, hi;  // 2nd and 98th percentile of each projection: channel 0 and 255
+  Rgb colour(const float* embedding) const;
+};
+
+// Fits on at most `max_samples` semantic voxels, an even subsample in key order (so the same map
+// always gets the same colours). Throws Error when the map has no semantic voxels.
+PcaColouring fit_pca_colouring(const SemanticMap& map, std::size_t max_samples = 20000);
+
+// Colour of a semantic voxel from its decoded embedding (map.params.semantic.dim floats).
+using EmbeddingColour = std::function<Rgb(const float* embedding)>;
+
+// Every occupied voxel of every submap, placed by its submap pose. Semantic voxels get
+// `semantic_colour`; the others a grey by world height (2nd..98th percentile: dark..light).
+std::vector<ColouredVoxel> colour_occupied_voxels(const SemanticMap& map, const EmbeddingColour& semantic_colour);
+// The same with PCA colours (fitted on this map) for semantic voxels.
+std::vector<ColouredVoxel> colour_by_pca(const SemanticMap& map);
+
+using ExportProgress = std::function<void(std::size_t done, std::size_t total)>;
+
+enum class PlyEncoding { kBinaryLittleEndian, kAscii };
+// One vertex per voxel: float x y z, uchar red green blue, uint count. Throws Error on I/O failure.
+void write_ply(const std::filesystem::path& path, const std::vector<ColouredVoxel>& voxels, PlyEncoding encoding,
+               const ExportProgress& progress = {});
+
+struct BirdsEyeParams {
+  double resolution = 0.0;    // metres per pixel; 0: the voxel size, coarser if needed for max_auto_pixels
+  int max_auto_pixels = 2000;  // longest side when the resolution is automatic
+  int max_pixels = 20000;     // longest side allowed for an explicit resolution
+  bool hill_shading = false;  // light relief shading from the north-west
+  Rgb background = {0, 0, 0};
+};
+
+// Top-down orthographic view, world x to the right and y up; a pixel shows the highest voxel whose
+// footprint covers its centre (or, when pixels are larger than voxels, whose centre it contains).
+struct BirdsEyeImage {
+  cv::Mat rgb;                  // CV_8UC3 in RGB order
+  double resolution = 0.0;      // metres per pixel
+  Eigen::Vector2d min_xy{0, 0};  // world x of the left edge, y of the bottom edge
+  // (column, row) of the pixel containing world point (x, y).
+  Eigen::Vector2i pixel_of(double x, double y) const;
+};
+
+BirdsEyeImage render_birds_eye(const std::vector<ColouredVoxel>& voxels, double voxel_size,
+                               const BirdsEyeParams& params = {});
+void write_png(const std::filesystem::path& path, const BirdsEyeImage& image);  // throws Error
+
+}  // namespace slamvdb
