@@ -11,6 +11,7 @@
 #include "slamvdb/core/ontology.hpp"
 #include "slamvdb/inference/simulated_encoders.hpp"
 #include "slamvdb/io/image_io.hpp"
+#include "slamvdb/io/map_store.hpp"
 #include "slamvdb/io/npy.hpp"
 #include "slamvdb/io/scan_io.hpp"
 #include "slamvdb/io/sequence_reader.hpp"
@@ -295,6 +296,45 @@ TEST_F(MappingPipelineTest, PrecomputedNpyFeaturesGiveTheSameMap) {
   });
   EXPECT_EQ(a.info.model_id, "precomputed-test");
   fs::remove_all(copy);
+}
+
+}  // namespace
+}  // namespace slamvdb
+
+namespace slamvdb {
+namespace {
+
+// The round trip: synth -> map -> save -> load gives back the same map.
+TEST_F(MappingPipelineTest, SynthMapSaveLoadRoundTrip) {
+  const Sequence seq = read_sequence(dir_);
+  EncoderFeatureSource source(std::make_unique<SimulatedDenseEncoder>(encoder_config()),
+                              EncoderFeatureSource::Input::kLabels);
+  PipelineOptions o = options();
+  o.max_scans = 20;
+  PipelineReport report;
+  const SemanticMap built = build_map(seq, &source, o, report);
+  const fs::path file = dir_.parent_path() / (dir_.filename().string() + ".svdb");
+  save_map(file, built);
+  const SemanticMap loaded = load_map(file);
+  EXPECT_EQ(loaded.info.model_id, built.info.model_id);
+  EXPECT_EQ(loaded.params.semantic.dim, 64);
+  ASSERT_EQ(loaded.submaps.size(), 1u);
+  EXPECT_EQ(loaded.num_known_voxels(), built.num_known_voxels());
+  EXPECT_EQ(loaded.num_occupied_voxels(), built.num_occupied_voxels());
+  ASSERT_EQ(loaded.num_semantic_voxels(), built.num_semantic_voxels());
+  const auto& a = built.submaps[0].map;
+  const auto& b = loaded.submaps[0].map;
+  std::vector<float> va(64), vb(64);
+  a.semantics().for_each([&](const VoxelKey& k, SemanticLayer::Slot s) {
+    const auto t = b.semantics().find(k);
+    ASSERT_TRUE(t);
+    EXPECT_EQ(a.semantics().count_at(s), b.semantics().count_at(*t));
+    a.semantics().read(s, va.data());
+    b.semantics().read(*t, vb.data());
+    EXPECT_EQ(va, vb);
+    EXPECT_EQ(a.occupancy().log_odds(k), b.occupancy().log_odds(k));
+  });
+  fs::remove(file);
 }
 
 }  // namespace
