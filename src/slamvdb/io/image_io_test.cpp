@@ -7,6 +7,7 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "slamvdb/core/error.hpp"
+#include "slamvdb/testing/temp_dir.hpp"
 
 namespace slamvdb {
 namespace {
@@ -14,12 +15,7 @@ namespace fs = std::filesystem;
 
 const fs::path kFixture = fs::path(SLAMVDB_SOURCE_DIR) / "../shared/fixtures/rellis3d-000104";
 
-struct TempDir {
-  fs::path path = fs::temp_directory_path() / ("slamvdb-image-io-" + std::to_string(getpid()) + "-" +
-                                               ::testing::UnitTest::GetInstance()->current_test_info()->name());
-  TempDir() { fs::create_directories(path); }
-  ~TempDir() { fs::remove_all(path); }
-};
+using testing::TempDir;
 
 TEST(ImageIo, SizeFromJpegAndPngHeadersMatchesDecodedImages) {
   for (const char* name : {"frame000104-1581624663_149.jpg", "frame000104-1581624663_149.png"}) {

@@ -8,17 +8,13 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "slamvdb/core/error.hpp"
+#include "slamvdb/testing/temp_dir.hpp"
 
 namespace slamvdb {
 namespace {
 namespace fs = std::filesystem;
 
-struct TempDir {
-  fs::path path = fs::temp_directory_path() / ("slamvdb-kitti-" + std::to_string(getpid()) + "-" +
-                                               ::testing::UnitTest::GetInstance()->current_test_info()->name());
-  TempDir() { fs::create_directories(path); }
-  ~TempDir() { fs::remove_all(path); }
-};
+using testing::TempDir;
 
 // Calibration of KITTI odometry sequence 00 (P2 has a non-zero third row offset, which a
 // t_x-only reading of the baseline would get wrong).

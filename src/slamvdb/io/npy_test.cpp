@@ -9,18 +9,14 @@
 #include <optional>
 
 #include "slamvdb/core/error.hpp"
+#include "slamvdb/testing/temp_dir.hpp"
 #include "slamvdb/core/half.hpp"
 
 namespace slamvdb {
 namespace {
 namespace fs = std::filesystem;
 
-struct TempDir {
-  fs::path path = fs::temp_directory_path() / ("slamvdb-npy-" + std::to_string(getpid()) + "-" +
-                                               ::testing::UnitTest::GetInstance()->current_test_info()->name());
-  TempDir() { fs::create_directories(path); }
-  ~TempDir() { fs::remove_all(path); }
-};
+using testing::TempDir;
 
 // An .npy file assembled by hand, so that every header field can be made wrong on purpose.
 fs::path write_raw_npy(const fs::path& path, const std::string& descr, bool fortran, const std::string& shape,

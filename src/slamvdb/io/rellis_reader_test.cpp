@@ -12,6 +12,7 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "slamvdb/core/error.hpp"
+#include "slamvdb/testing/temp_dir.hpp"
 #include "slamvdb/io/image_io.hpp"
 #include "slamvdb/io/scan_io.hpp"
 
@@ -22,12 +23,7 @@ namespace fs = std::filesystem;
 const fs::path kFixture = fs::path(SLAMVDB_SOURCE_DIR) / "../shared/fixtures/rellis3d-000104";
 constexpr std::array<double, 5> kPublishedDistortion{-0.134313, -0.025905, 0.002181, 0.00084, 0.0};
 
-struct TempDir {
-  fs::path path = fs::temp_directory_path() / ("slamvdb-rellis-" + std::to_string(getpid()) + "-" +
-                                               ::testing::UnitTest::GetInstance()->current_test_info()->name());
-  TempDir() { fs::create_directories(path); }
-  ~TempDir() { fs::remove_all(path); }
-};
+using testing::TempDir;
 
 std::string error_of(const std::function<void()>& f) {
   try {

@@ -8,17 +8,13 @@
 #include <limits>
 
 #include "slamvdb/core/error.hpp"
+#include "slamvdb/testing/temp_dir.hpp"
 
 namespace slamvdb {
 namespace {
 namespace fs = std::filesystem;
 
-struct TempDir {
-  fs::path path = fs::temp_directory_path() / ("slamvdb-scan-io-" + std::to_string(getpid()) + "-" +
-                                               ::testing::UnitTest::GetInstance()->current_test_info()->name());
-  TempDir() { fs::create_directories(path); }
-  ~TempDir() { fs::remove_all(path); }
-};
+using testing::TempDir;
 
 template <typename T>
 fs::path write_binary(const fs::path& path, const std::vector<T>& values, std::size_t extra_bytes = 0) {

@@ -7,17 +7,13 @@
 #include <functional>
 
 #include "slamvdb/core/error.hpp"
+#include "slamvdb/testing/temp_dir.hpp"
 
 namespace slamvdb {
 namespace {
 namespace fs = std::filesystem;
 
-struct TempDir {
-  fs::path path = fs::temp_directory_path() / ("slamvdb-seq-" + std::to_string(getpid()) + "-" +
-                                               ::testing::UnitTest::GetInstance()->current_test_info()->name());
-  TempDir() { fs::create_directories(path); }
-  ~TempDir() { fs::remove_all(path); }
-};
+using testing::TempDir;
 
 std::string error_of(const std::function<void()>& f) {
   try {
