@@ -79,9 +79,10 @@ void run(Options opt) {
   if (bar) bar->finish();
   fmt::print("{}\n", report.summary());
   save_map(opt.output, map);
-  fmt::print("map saved to {}: {} occupied voxels, {} semantic voxels ({} {}-d), {:.1f} MB in memory\n", opt.output,
-             map.num_occupied_voxels(), map.num_semantic_voxels(), opt.precision, map.params.semantic.dim,
-             map.memory_bytes() / 1e6);
+  const SemanticLayer& layer = map.submaps.front().map.semantics();
+  fmt::print("map saved to {}: {} occupied voxels, {} semantic voxels ({} {}-d, {:.0f} B each in memory), "
+             "{:.1f} MB in memory\n", opt.output, map.num_occupied_voxels(), map.num_semantic_voxels(), opt.precision,
+             map.params.semantic.dim, layer.bytes_per_entry(), map.memory_bytes() / 1e6);
 }
 
 void add(CLI::App& root) {

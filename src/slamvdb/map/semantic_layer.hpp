@@ -59,7 +59,7 @@ class SemanticLayer {
  private:
   // Embeddings live in fixed-size chunks, not one growing vector, so the memory per entry stays
   // at the payload instead of up to twice it after a reallocation.
-  static constexpr std::size_t kChunkSlots = 1024;
+  static constexpr std::size_t kChunkSlots = 128;
   Slot allocate(const VoxelKey& key);
   std::byte* embedding(Slot s) const {
     return chunks_[s / kChunkSlots].get() + (s % kChunkSlots) * bytes_per_embedding_;
