@@ -6,6 +6,7 @@
 
 #include <atomic>
 #include <limits>
+#include <numeric>
 
 #include "slamvdb/core/error.hpp"
 
@@ -113,12 +114,12 @@ ScanIntegrationStats OccupancyGrid::integrate_scan(const std::vector<Vec3f>& poi
 
   // Rays are cast in parallel. A voxel is updated only by the thread that moves its stamp to this
   // scan (at most one update per voxel per scan). The block table is read-only while threads run:
-  // a ray that needs a new block is deferred and replayed serially, where its already-stamped
-  // voxels are skipped, so replay never updates a voxel twice.
+  // a ray that needs a new block is deferred; its blocks are created serially and it is cast
+  // again, skipping the voxels it already stamped, so a replay never updates a voxel twice.
   tbb::enumerable_thread_specific<ScanContext> contexts;
   const Vec3d from = origin * inv_voxel_size_;
 
-  // mode 0: parallel, defer on a missing block; mode 1: serial, create blocks.
+  // serial = false: defer the ray at a missing block; serial = true: create blocks as needed.
   auto cast = [&](const Ray& r, uint32_t ray_index, bool hits, ScanContext& ctx, bool serial) {
     VoxelKey cached_key(std::numeric_limits<int>::min(), 0, 0);
     Block* block = nullptr;
@@ -156,21 +157,45 @@ ScanIntegrationStats OccupancyGrid::integrate_scan(const std::vector<Vec3f>& poi
                       [&](const VoxelKey& k) { visit(k, params_.log_odds_miss); });
   };
 
+  // Creates the blocks a ray crosses: the same DDA at block resolution, an eighth of the steps.
+  auto create_blocks = [&](const Ray& r, bool hits) {
+    if (hits) {
+      block_at(block_key_of(key_of(origin + r.dir * r.range)));
+      return;
+    }
+    const double clear = std::min(r.range, params_.max_clearing_range);
+    const Vec3d to = (origin + r.dir * clear) * inv_voxel_size_ / kBlockSide;
+    traverse_voxels(from / kBlockSide, to, [&](const VoxelKey& bk) { block_at(bk); });
+    block_at(VoxelKey(static_cast<int>(std::floor(to.x())), static_cast<int>(std::floor(to.y())),
+                      static_cast<int>(std::floor(to.z()))));
+  };
+
   // Hits first, all of them, so a voxel that is both an end point and on another ray counts as a
   // hit (OctoMap's rule: the free set excludes the occupied set).
+  std::vector<uint32_t> todo(rays.size()), deferred;
   for (const bool hits : {true, false}) {
-    tbb::parallel_for(tbb::blocked_range<uint32_t>(0, static_cast<uint32_t>(rays.size()), 512),
-                      [&](const tbb::blocked_range<uint32_t>& range) {
-                        ScanContext& ctx = contexts.local();
-                        for (uint32_t i = range.begin(); i != range.end(); ++i) cast(rays[i], i, hits, ctx, false);
-                      });
-    ScanContext serial_ctx;
-    for (ScanContext& ctx : contexts) {
-      for (uint32_t i : ctx.deferred) cast(rays[i], i, hits, serial_ctx, true);
-      ctx.deferred.clear();
+    todo.resize(rays.size());
+    std::iota(todo.begin(), todo.end(), 0u);
+    for (int round = 0; !todo.empty(); ++round) {
+      if (round == 2) {  // rounding at block corners can still miss a block: finish serially
+        ScanContext& ctx = contexts.local();
+        for (uint32_t i : todo) cast(rays[i], i, hits, ctx, true);
+        break;
+      }
+      tbb::parallel_for(tbb::blocked_range<std::size_t>(0, todo.size(), 512),
+                        [&](const tbb::blocked_range<std::size_t>& range) {
+                          ScanContext& ctx = contexts.local();
+                          for (std::size_t j = range.begin(); j != range.end(); ++j)
+                            cast(rays[todo[j]], todo[j], hits, ctx, false);
+                        });
+      deferred.clear();
+      for (ScanContext& ctx : contexts) {
+        deferred.insert(deferred.end(), ctx.deferred.begin(), ctx.deferred.end());
+        ctx.deferred.clear();
+      }
+      for (uint32_t i : deferred) create_blocks(rays[i], hits);
+      todo.swap(deferred);
     }
-    contexts.local().stats += serial_ctx.stats;
-    contexts.local().freed.insert(contexts.local().freed.end(), serial_ctx.freed.begin(), serial_ctx.freed.end());
   }
   for (const ScanContext& ctx : contexts) {
     stats += ctx.stats;
