@@ -10,6 +10,9 @@
 #include "progress.hpp"
 #include "slamvdb/core/error.hpp"
 #include "slamvdb/inference/simulated_encoders.hpp"
+#if SLAMVDB_WITH_TORCH
+#include "slamvdb/inference/torch_encoders.hpp"
+#endif
 #include "slamvdb/io/map_store.hpp"
 #include "slamvdb/io/sequence_reader.hpp"
 #include "slamvdb/pipeline/mapping_pipeline.hpp"
@@ -23,6 +26,8 @@ struct Options {
   std::string precision = "fp16";
   std::string feature_size = "192x128";
   std::string distortion;
+  std::string model;
+  int threads = -1;
   PipelineOptions pipeline;
   SimulatedEncoderConfig sim;
   bool realtime = false;
@@ -38,6 +43,20 @@ std::array<double, 5> parse_distortion(const std::string& text) {
 
 std::unique_ptr<FeatureSource> make_feature_source(const Options& opt, const Sequence& seq) {
   if (opt.features == "none") return nullptr;
+  if (!opt.model.empty() && opt.features != "model")
+    throw Error("--model is given: use it with --features model");
+  if (opt.features == "model") {
+    if (opt.model.empty()) throw Error("--features model needs --model MODEL.pt (TorchScript dense encoder + manifest)");
+#if SLAMVDB_WITH_TORCH
+    TorchEncoderOptions torch_options;
+    torch_options.threads = opt.threads;
+    auto encoder = std::make_unique<TorchDenseImageEncoder>(opt.model, torch_options);
+    fmt::print("network {}: {}-d features\n", encoder->model_id(), encoder->dim());
+    return std::make_unique<EncoderFeatureSource>(std::move(encoder), EncoderFeatureSource::Input::kRgb);
+#else
+    throw Error("this slamvdb was built without TorchScript support (SLAMVDB_WITH_TORCH=OFF)");
+#endif
+  }
   if (opt.features == "precomputed") {
     for (const auto& img : seq.images)
       if (!img.features.empty()) return std::make_unique<NpyFeatureSource>("precomputed:" + seq.root.string());
@@ -56,7 +75,7 @@ std::unique_ptr<FeatureSource> make_feature_source(const Options& opt, const Seq
     return std::make_unique<EncoderFeatureSource>(std::make_unique<SimulatedDenseEncoder>(sim),
                                                   EncoderFeatureSource::Input::kLabels);
   }
-  throw Error(fmt::format("--features '{}': expected simulated, precomputed or none", opt.features));
+  throw Error(fmt::format("--features '{}': expected simulated, model, precomputed or none", opt.features));
 }
 
 void run(Options opt) {
@@ -94,8 +113,11 @@ void add(CLI::App& root) {
   cmd->add_option("-o,--output", opt->output, "Map file to write (replaced atomically)")->required();
   cmd->add_option("--features", opt->features,
                   "Where image features come from: 'simulated' (SIMULATED from the 2D label images, no network), "
-                  "'precomputed' (features/<image>.npy, C x H x W), 'none' (geometry only)")
+                  "'model' (a TorchScript dense encoder, --model), 'precomputed' (features/<image>.npy, C x H x W), "
+                  "'none' (geometry only)")
       ->capture_default_str();
+  cmd->add_option("--model", opt->model, "TorchScript dense image encoder (MODEL.pt with MODEL.json beside it)");
+  cmd->add_option("--threads", opt->threads, "Network threads (-1: the manifest's setting)")->capture_default_str();
   auto& m = opt->pipeline.map;
   cmd->add_option("--voxel-size", m.occupancy.voxel_size, "Voxel edge in metres")->capture_default_str();
   cmd->add_option("--dim", m.semantic.dim, "Embedding dimension")->capture_default_str();
