@@ -361,3 +361,35 @@ TEST_F(TorchEncoders, SegmentCommandRunsTheSimulatedEncodersOnGroundTruthLabels)
 
 }  // namespace
 }  // namespace slamvdb
+
+namespace slamvdb {
+namespace {
+
+// `slamvdb map --features model` runs the network on every image of a (simulated) sequence and
+// fuses its features: the map's model id is the network's and its embeddings are 16-d.
+TEST_F(TorchEncoders, MapCommandFusesTheNetworksFeatures) {
+  const fs::path seq = dir_ / "seq", map = dir_ / "net.svdb";
+  ASSERT_EQ(run_cli("synth " + quoted(seq) + " --length 15 --image-size 192x120", dir_ / "synth.txt"), 0)
+      << read_text(dir_ / "synth.txt");
+  ASSERT_EQ(run_cli("map " + quoted(seq) + " -o " + quoted(map) + " --features model --model " +
+                        quoted(model("dense")) + " --dim 16",
+                    dir_ / "map.txt"),
+            0)
+      << read_text(dir_ / "map.txt");
+  const std::string out = read_text(dir_ / "map.txt");
+  EXPECT_NE(out.find("network tiny-lseg-random-init: 16-d"), std::string::npos) << out;
+  EXPECT_NE(out.find("0 failed"), std::string::npos) << out;
+  ASSERT_EQ(run_cli("info " + quoted(map), dir_ / "info.txt"), 0);
+  const std::string info = read_text(dir_ / "info.txt");
+  EXPECT_NE(info.find("tiny-lseg-random-init"), std::string::npos) << info;
+  EXPECT_EQ(info.find(" 0 semantic voxels"), std::string::npos) << info;
+  // A map dimension that does not match the network is refused with a clear message.
+  EXPECT_NE(run_cli("map " + quoted(seq) + " -o " + quoted(dir_ / "bad.svdb") + " --features model --model " +
+                        quoted(model("dense")),
+                    dir_ / "bad.txt"),
+            0);
+  EXPECT_NE(read_text(dir_ / "bad.txt").find("16 channels"), std::string::npos) << read_text(dir_ / "bad.txt");
+}
+
+}  // namespace
+}  // namespace slamvdb
