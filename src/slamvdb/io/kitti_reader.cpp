@@ -111,19 +111,10 @@ Sequence read_kitti_sequence(const fs::path& dir, const ReadOptions& options) {
     seq.notes.push_back(
         fmt::format("{} of {} images have no feature map in {}", without_features, image_files.size(), feature_dir));
 
-  std::size_t without_labels = 0;
-  for (std::size_t i = 0; i < scan_files.size(); ++i) {
+  for (std::size_t i = 0; i < scan_files.size(); ++i)
     if (frame_index(scan_files[i], stamps.size(), times_file) != i)
       throw Error(fmt::format("KITTI scan {} is out of sequence: expected frame {}", scan_files[i], i));
-    ScanRecord scan{stamps[i], scan_files[i], {}};
-    if (const fs::path labels = label_dir / (scan_files[i].stem().string() + ".label"); fs::exists(labels))
-      scan.labels = labels;
-    without_labels += scan.labels.empty();
-    seq.scans.push_back(std::move(scan));
-  }
-  if (fs::is_directory(label_dir) && without_labels > 0)
-    seq.notes.push_back(
-        fmt::format("{} of {} scans have no label file in {}", without_labels, scan_files.size(), label_dir));
+  seq.scans = scan_records(scan_files, stamps, label_dir, seq.notes);
 
   if (const fs::path poses_file = dir / "poses.txt"; fs::exists(poses_file)) {
     const auto cam0_poses = read_kitti_poses(poses_file);

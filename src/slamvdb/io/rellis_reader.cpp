@@ -223,17 +223,7 @@ Sequence read_rellis_sequence(const fs::path& dir, const ReadOptions& options) {
     stamps = stamps_from_frames(scan_files, images, dir, seq.notes);
   }
 
-  std::size_t without_labels = 0;
-  for (std::size_t i = 0; i < scan_files.size(); ++i) {
-    ScanRecord scan{stamps[i], scan_files[i], {}};
-    if (const fs::path labels = label_dir / (scan_files[i].stem().string() + ".label"); fs::exists(labels))
-      scan.labels = labels;
-    without_labels += scan.labels.empty();
-    seq.scans.push_back(std::move(scan));
-  }
-  if (fs::is_directory(label_dir) && without_labels > 0)
-    seq.notes.push_back(
-        fmt::format("{} of {} scans have no label file in {}", without_labels, scan_files.size(), label_dir));
+  seq.scans = scan_records(scan_files, stamps, label_dir, seq.notes);
 
   if (const fs::path poses_file = dir / "poses.txt"; fs::exists(poses_file)) {
     auto poses = read_kitti_poses(poses_file);

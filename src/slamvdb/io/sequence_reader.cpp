@@ -144,4 +144,21 @@ void apply_camera_options(Sequence& sequence, const ReadOptions& options) {
   sequence.camera.validate();
 }
 
+std::vector<ScanRecord> scan_records(const std::vector<std::filesystem::path>& scan_files, const std::vector<double>& stamps,
+                                     const std::filesystem::path& label_dir, std::vector<std::string>& notes) {
+  std::vector<ScanRecord> scans;
+  std::size_t without_labels = 0;
+  for (std::size_t i = 0; i < scan_files.size(); ++i) {
+    ScanRecord scan{stamps[i], scan_files[i], {}};
+    if (const std::filesystem::path labels = label_dir / (scan_files[i].stem().string() + ".label"); std::filesystem::exists(labels))
+      scan.labels = labels;
+    without_labels += scan.labels.empty();
+    scans.push_back(std::move(scan));
+  }
+  if (std::filesystem::is_directory(label_dir) && without_labels > 0)
+    notes.push_back(
+        fmt::format("{} of {} scans have no label file in {}", without_labels, scan_files.size(), label_dir));
+  return scans;
+}
+
 }  // namespace slamvdb

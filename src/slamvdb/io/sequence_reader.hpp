@@ -47,6 +47,12 @@ std::vector<std::filesystem::path> list_files(const std::filesystem::path& dir, 
 // Throws Error naming `path` and what it was expected to be if it does not exist.
 void require_exists(const std::filesystem::path& path, std::string_view what);
 
+// One ScanRecord per scan file (stamps[i] for scan_files[i]) with its label file from label_dir
+// when there is one; notes how many scans have none when label_dir exists.
+std::vector<ScanRecord> scan_records(const std::vector<std::filesystem::path>& scan_files,
+                                     const std::vector<double>& stamps, const std::filesystem::path& label_dir,
+                                     std::vector<std::string>& notes);
+
 // Applies the options' distortion to the sequence's camera (with a note) and validates the camera.
 void apply_camera_options(Sequence& sequence, const ReadOptions& options);
 
