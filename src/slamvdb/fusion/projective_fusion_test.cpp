@@ -104,7 +104,9 @@ TEST(ProjectiveFusion, FootprintIsClippedAtTheImageBorderNeverWrapped) {
   ASSERT_EQ(a.voxels.size(), 1u);
   for (int y = 0; y < a.height; ++y)
     for (int px = 0; px < a.width; ++px)
-      if (a.owner[y * a.width + px] >= 0) EXPECT_GT(px, 170) << "pixel wrapped to x=" << px;
+      if (a.owner[y * a.width + px] >= 0) {
+        EXPECT_GT(px, 170) << "pixel wrapped to x=" << px;
+      }
   // Entirely outside: nothing.
   VoxelMap outside(params(3));
   occupy(outside, {10.0, 0.0, 2.0});
