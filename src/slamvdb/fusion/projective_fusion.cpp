@@ -50,17 +50,18 @@ const Association& ProjectiveFusion::associate(const OccupancyGrid& grid, const 
   // Pass 1: rasterise every candidate into the depth buffer.
   std::vector<int32_t>& owner = a.owner;
   int32_t candidate = 0;
-  for (const auto& [bk, block] : grid.blocks()) {
-    if (block->num_occupied == 0) continue;
+  grid.for_each_block_near(T_map_camera.translation(), params_.max_depth + block_radius,
+                           [&](const VoxelKey& bk, const OccupancyGrid::Block& block) {
+    if (block.num_occupied == 0) return;
     const Vec3d block_center = ((bk.cast<double>() * OccupancyGrid::kBlockSide).array() +
                                 OccupancyGrid::kBlockSide / 2.0).matrix() * vs;
     const Vec3d pb = R * block_center + t;
     const double db = pb.norm();
-    if (db - block_radius > params_.max_depth || pb.z() + block_radius < params_.min_depth) continue;
+    if (db - block_radius > params_.max_depth || pb.z() + block_radius < params_.min_depth) return;
     if (db > block_radius && std::acos(std::clamp(pb.z() / db, -1.0, 1.0)) > cone + std::asin(block_radius / db))
-      continue;
+      return;
     for (int i = 0; i < OccupancyGrid::kBlockVoxels; ++i) {
-      if (!block->occupied(i)) continue;
+      if (!block.occupied(i)) continue;
       const VoxelKey key = OccupancyGrid::voxel_key(bk, i);
       const Vec3d p = R * grid.center_of(key) + t;
       const double dist = p.norm();
@@ -103,7 +104,7 @@ const Association& ProjectiveFusion::associate(const OccupancyGrid& grid, const 
       candidate_keys_.push_back(key);
       ++candidate;
     }
-  }
+  });
   a.candidates = candidate_keys_.size();
 
   // Pass 2: renumber the candidates that kept pixels; the rest were occluded.

@@ -44,7 +44,11 @@ OccupancyGrid::OccupancyGrid(const OccupancyParams& params) : params_(params) {
 
 OccupancyGrid::Block& OccupancyGrid::block_at(const VoxelKey& block_key) {
   auto& slot = blocks_[block_key];
-  if (!slot) slot = std::make_unique<Block>();
+  if (!slot) {
+    slot = std::make_unique<Block>();
+    const VoxelKey region(block_key.x() >> kRegionBits, block_key.y() >> kRegionBits, block_key.z() >> kRegionBits);
+    regions_[region].emplace_back(block_key, slot.get());
+  }
   return *slot;
 }
 

@@ -105,6 +105,22 @@ class OccupancyGrid {
   }
   const BlockMap& blocks() const { return blocks_; }
 
+  // f(block_key, block) for every block within `radius` of `center` (world metres), found through
+  // the region index, so the cost depends on the neighbourhood, not on the size of the map.
+  template <class F>
+  void for_each_block_near(const Vec3d& center, double radius, F&& f) const {
+    const double region_side = kBlockSide * kRegionSide * params_.voxel_size;
+    const Eigen::Vector3i lo = ((center.array() - radius) / region_side).floor().cast<int>();
+    const Eigen::Vector3i hi = ((center.array() + radius) / region_side).floor().cast<int>();
+    for (int x = lo.x(); x <= hi.x(); ++x)
+      for (int y = lo.y(); y <= hi.y(); ++y)
+        for (int z = lo.z(); z <= hi.z(); ++z) {
+          const auto it = regions_.find(VoxelKey(x, y, z));
+          if (it == regions_.end()) continue;
+          for (const auto& [bk, block] : it->second) f(bk, *block);
+        }
+  }
+
   template <class F>  // f(const VoxelKey&, float log_odds)
   void for_each_occupied(F&& f) const {
     for (const auto& [bk, block] : blocks_) {
@@ -120,9 +136,14 @@ class OccupancyGrid {
   void set_occupied_bit(Block& b, int index, bool occupied);
   void update_voxel(Block& b, const VoxelKey& key, int index, float delta, ScanContext& ctx);
 
+  // Blocks grouped by region (kRegionSide^3 blocks, 16 m at 0.25 m voxels) for neighbourhood queries.
+  static constexpr int kRegionBits = 3, kRegionSide = 1 << kRegionBits;
+  using Region = std::vector<std::pair<VoxelKey, const Block*>>;
+
   OccupancyParams params_;
   double inv_voxel_size_;
   BlockMap blocks_;
+  absl::flat_hash_map<VoxelKey, Region, VoxelKeyAbslHash> regions_;
   uint32_t scan_counter_ = 0;
 };
 

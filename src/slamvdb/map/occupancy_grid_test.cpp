@@ -154,6 +154,20 @@ TEST(OccupancyGrid, BlockIndexingRoundTripsForNegativeKeys) {
   }
 }
 
+TEST(OccupancyGrid, NeighbourhoodQueryFindsNearBlocksOnly) {
+  OccupancyGrid grid;  // 0.25 m voxels: 2 m blocks, 16 m regions
+  const Vec3d near(3.0, -2.0, 0.5), far(5000.0, 0.0, 0.0), edge(-39.0, 0.0, 0.0);
+  for (const Vec3d& p : {near, far, edge}) grid.set_log_odds(grid.key_of(p), 1.0f);
+  std::set<std::tuple<int, int, int>> seen;
+  grid.for_each_block_near(Vec3d::Zero(), 40.0, [&](const VoxelKey& bk, const OccupancyGrid::Block& b) {
+    EXPECT_EQ(b.num_occupied, 1);
+    seen.insert(tup(bk));
+  });
+  EXPECT_EQ(seen.size(), 2u);
+  EXPECT_TRUE(seen.count(tup(OccupancyGrid::block_key_of(grid.key_of(near)))));
+  EXPECT_TRUE(seen.count(tup(OccupancyGrid::block_key_of(grid.key_of(edge)))));
+}
+
 TEST(OccupancyGrid, RejectsInvalidParameters) {
   OccupancyParams p;
   p.voxel_size = 0;
