@@ -339,3 +339,35 @@ TEST_F(MappingPipelineTest, SynthMapSaveLoadRoundTrip) {
 
 }  // namespace
 }  // namespace slamvdb
+
+namespace slamvdb {
+namespace {
+
+int run_cli(const std::string& args, std::string* output) {
+  const fs::path log = fs::temp_directory_path() / ("slamvdb_cli_" + std::to_string(::getpid()) + ".txt");
+  const int rc = std::system((std::string(SLAMVDB_CLI_PATH) + " " + args + " > '" + log.string() + "' 2>&1").c_str());
+  std::ifstream in(log);
+  output->assign(std::istreambuf_iterator<char>(in), {});
+  fs::remove(log);
+  return rc;
+}
+
+TEST_F(MappingPipelineTest, MapCommandNamesTheSimulationAndRejectsBadOptions) {
+  const fs::path map = dir_.parent_path() / (dir_.filename().string() + "_cli.svdb");
+  std::string out;
+  ASSERT_EQ(run_cli("map '" + dir_.string() + "' -o '" + map.string() + "' --max-scans 10 --dim 64", &out), 0) << out;
+  EXPECT_NE(out.find("SIMULATED"), std::string::npos) << out;
+  EXPECT_NE(out.find("10 integrated of 10"), std::string::npos) << out;
+  EXPECT_TRUE(fs::exists(map));
+  EXPECT_NE(run_cli("map '" + dir_.string() + "' -o '" + map.string() + "' --precision fp8", &out), 0);
+  EXPECT_NE(out.find("fp8"), std::string::npos) << out;
+  EXPECT_NE(run_cli("map '" + dir_.string() + "' -o '" + map.string() + "' --features magic", &out), 0);
+  EXPECT_NE(out.find("magic"), std::string::npos) << out;
+  EXPECT_NE(run_cli("map /nonexistent/seq -o '" + map.string() + "'", &out), 0);
+  EXPECT_EQ(run_cli("map --help", &out), 0);
+  EXPECT_NE(out.find("--max-clearing-range"), std::string::npos);
+  fs::remove(map);
+}
+
+}  // namespace
+}  // namespace slamvdb
