@@ -263,7 +263,7 @@ CliRun run_cli(const std::string& args) {
   return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, output};
 }
 
-std::string quoted(const fs::path& p) { return "'" + p.string() + "'"; }
+std::string quoted(const fs::path& p) { return fmt::format("'{}'", p.string()); }
 
 SemanticMap small_semantic_map() {
   SemanticMap map;

@@ -149,7 +149,7 @@ TEST(OccupancyGrid, WorksTensOfKilometresFromTheOrigin) {
 }
 
 TEST(OccupancyGrid, BlockIndexingRoundTripsForNegativeKeys) {
-  for (const VoxelKey k : {VoxelKey(-1, -8, -9), VoxelKey(7, 8, -17), VoxelKey(-100000, 3, 99999)}) {
+  for (const VoxelKey& k : {VoxelKey(-1, -8, -9), VoxelKey(7, 8, -17), VoxelKey(-100000, 3, 99999)}) {
     EXPECT_EQ(OccupancyGrid::voxel_key(OccupancyGrid::block_key_of(k), OccupancyGrid::index_in_block(k)), k);
   }
 }
