@@ -55,10 +55,14 @@ SemanticMap build_map(const Sequence& seq, FeatureSource* features, const Pipeli
 
   const std::size_t num_scans =
       options.max_scans ? std::min(options.max_scans, seq.scans.size()) : seq.scans.size();
-  // Images after the last scan we map have no geometry to land on.
-  const double last_stamp = num_scans ? seq.scans[num_scans - 1].stamp : -1e300;
-  std::size_t num_images = 0;
-  while (num_images < seq.images.size() && seq.images[num_images].stamp <= last_stamp) ++num_images;
+  // With --max-scans, the images after the last mapped scan are not part of the run; otherwise
+  // every image is, and one beyond the poses is reported as such.
+  std::size_t num_images = seq.images.size();
+  if (options.max_scans) {
+    const double last_stamp = num_scans ? seq.scans[num_scans - 1].stamp : -1e300;
+    num_images = 0;
+    while (num_images < seq.images.size() && seq.images[num_images].stamp <= last_stamp) ++num_images;
+  }
   report.scans_total = num_scans;
   report.images_total = features ? num_images : 0;
 

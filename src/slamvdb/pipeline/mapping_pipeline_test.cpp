@@ -156,17 +156,18 @@ TEST_F(MappingPipelineTest, BadScansAreSkippedCountedAndReported) {
 
 TEST_F(MappingPipelineTest, ImagesOutsideThePoseRangeAreReportedNotGuessed) {
   Sequence seq = read_sequence(dir_);
-  ImageRecord early = seq.images.front();
+  ImageRecord early = seq.images.front(), late = seq.images.back();
   early.stamp = seq.scans.front().stamp - 5.0;
+  late.stamp = seq.scans.back().stamp + 5.0;
   seq.images.insert(seq.images.begin(), early);
+  seq.images.push_back(late);
   EncoderFeatureSource source(std::make_unique<SimulatedDenseEncoder>(encoder_config()),
                               EncoderFeatureSource::Input::kLabels);
-  PipelineOptions o = options();
-  o.max_scans = 10;
   PipelineReport report;
-  build_map(seq, &source, o, report);
-  EXPECT_EQ(report.images_outside_pose_range, 1u);
-  EXPECT_EQ(report.images_fused + 1, report.images_total);
+  build_map(seq, &source, options(), report);
+  EXPECT_EQ(report.images_total, seq.images.size());
+  EXPECT_EQ(report.images_outside_pose_range, 2u);
+  EXPECT_EQ(report.images_fused + 2, report.images_total);
 }
 
 TEST_F(MappingPipelineTest, WrongFeatureDimensionIsAClearError) {
