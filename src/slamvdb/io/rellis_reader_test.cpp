@@ -12,6 +12,7 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "slamvdb/core/error.hpp"
+#include "slamvdb/testing/error_of.hpp"
 #include "slamvdb/testing/temp_dir.hpp"
 #include "slamvdb/io/image_io.hpp"
 #include "slamvdb/io/scan_io.hpp"
@@ -25,14 +26,7 @@ constexpr std::array<double, 5> kPublishedDistortion{-0.134313, -0.025905, 0.002
 
 using testing::TempDir;
 
-std::string error_of(const std::function<void()>& f) {
-  try {
-    f();
-  } catch (const Error& e) {
-    return e.what();
-  }
-  return "";
-}
+using testing::error_of;
 
 // ---- the real frame 000104 ----
 

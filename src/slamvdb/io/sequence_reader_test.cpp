@@ -7,6 +7,7 @@
 #include <functional>
 
 #include "slamvdb/core/error.hpp"
+#include "slamvdb/testing/error_of.hpp"
 #include "slamvdb/testing/temp_dir.hpp"
 
 namespace slamvdb {
@@ -15,14 +16,7 @@ namespace fs = std::filesystem;
 
 using testing::TempDir;
 
-std::string error_of(const std::function<void()>& f) {
-  try {
-    f();
-  } catch (const Error& e) {
-    return e.what();
-  }
-  return "";
-}
+using testing::error_of;
 
 TEST(SequenceReader, UnknownLayoutErrorListsWhatWasLookedFor) {
   TempDir tmp;
