@@ -104,15 +104,20 @@ def export_image(model, out_dir, name, model_id, size, threads=0):
     return manifest
 
 
-def main():
-    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--out", required=True, help="output directory")
-    p.add_argument("--model", default="ViT-B/32", help="name or checkpoint for clip.load")
+def add_common_arguments(p):
+    """The options every export script shares."""
     p.add_argument("--vocab", help="CLIP merge list (default: the one shipped in the clip package)")
     p.add_argument("--threads", type=int, default=0,
                    help="runtime.threads in the manifests; 0 = libtorch's default (one per physical core)")
     p.add_argument("--random-init-test", action="store_true",
                    help="export a small randomly initialised stand-in instead (exercises this script)")
+
+
+def main():
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--out", required=True, help="output directory")
+    p.add_argument("--model", default="ViT-B/32", help="name or checkpoint for clip.load")
+    add_common_arguments(p)
     args = p.parse_args()
     os.makedirs(args.out, exist_ok=True)
 

@@ -150,14 +150,11 @@ def main():
     p.add_argument("--backbone", default="clip_vitl16_384")
     p.add_argument("--height", type=int, default=256)
     p.add_argument("--width", type=int, default=384)
-    p.add_argument("--vocab", help="CLIP merge list (default: the one shipped in the clip package)")
-    p.add_argument("--threads", type=int, default=0,
-                   help="runtime.threads in the manifests; 0 = libtorch's default (one per physical core)")
-    p.add_argument("--random-init-test", action="store_true",
-                   help="export a small randomly initialised stand-in instead (exercises this script)")
+    from export_clip import add_common_arguments, export_text
+
+    add_common_arguments(p)
     args = p.parse_args()
     os.makedirs(args.out, exist_ok=True)
-    from export_clip import export_text
 
     if args.random_init_test:
         import make_test_models as tm
