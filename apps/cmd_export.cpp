@@ -11,7 +11,7 @@
 #include "progress.hpp"
 #include "slamvdb/core/error.hpp"
 #include "slamvdb/io/map_export.hpp"
-#include "slamvdb/io/map_store.hpp"
+#include "slamvdb/store/map_store.hpp"
 
 namespace slamvdb::cli {
 namespace {

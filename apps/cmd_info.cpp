@@ -8,7 +8,7 @@
 #include <nlohmann/json.hpp>
 
 #include "command_registry.hpp"
-#include "slamvdb/io/map_store.hpp"
+#include "slamvdb/store/map_store.hpp"
 
 namespace slamvdb::cli {
 namespace {

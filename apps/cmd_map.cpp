@@ -13,7 +13,7 @@
 #if SLAMVDB_WITH_TORCH
 #include "slamvdb/inference/torch_encoders.hpp"
 #endif
-#include "slamvdb/io/map_store.hpp"
+#include "slamvdb/store/map_store.hpp"
 #include "slamvdb/io/sequence_reader.hpp"
 #include "slamvdb/pipeline/mapping_pipeline.hpp"
 

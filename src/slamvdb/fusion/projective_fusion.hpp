@@ -4,7 +4,7 @@
 #include <vector>
 
 #include "slamvdb/fusion/camera_model.hpp"
-#include "slamvdb/inference/encoders.hpp"
+#include "slamvdb/core/feature_map.hpp"
 #include "slamvdb/map/voxel_map.hpp"
 
 namespace slamvdb {

@@ -6,20 +6,9 @@
 #include <string_view>
 #include <vector>
 
+#include "slamvdb/core/feature_map.hpp"
+
 namespace slamvdb {
-
-// Per-pixel embeddings, pixel-major (H x W x C): the C values of one pixel are contiguous, which
-// is what fusion reads. Files and networks that produce C x H x W are transposed on arrival.
-struct FeatureMap {
-  int dim = 0, height = 0, width = 0;
-  std::vector<float> data;  // size height * width * dim
-
-  FeatureMap() = default;
-  FeatureMap(int dim_, int height_, int width_)
-      : dim(dim_), height(height_), width(width_), data(static_cast<std::size_t>(dim_) * height_ * width_) {}
-  float* pixel(int x, int y) { return data.data() + (static_cast<std::size_t>(y) * width + x) * dim; }
-  const float* pixel(int x, int y) const { return data.data() + (static_cast<std::size_t>(y) * width + x) * dim; }
-};
 
 // One camera image as the encoders see it. A network reads `rgb`; the simulated encoder reads
 // the 2D ground-truth `labels` (CV_8UC1 class ids). Either may be empty when not available.

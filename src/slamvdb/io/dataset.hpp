@@ -8,7 +8,6 @@
 #include "slamvdb/core/types.hpp"
 #include "slamvdb/fusion/camera_model.hpp"
 #include "slamvdb/fusion/trajectory.hpp"
-#include "slamvdb/inference/encoders.hpp"
 
 namespace slamvdb {
 

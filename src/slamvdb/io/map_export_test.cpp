@@ -15,7 +15,7 @@
 #include <sstream>
 
 #include "slamvdb/core/error.hpp"
-#include "slamvdb/io/map_store.hpp"
+#include "slamvdb/store/map_store.hpp"
 
 namespace slamvdb {
 namespace {

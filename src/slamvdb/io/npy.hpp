@@ -4,7 +4,7 @@
 #include <filesystem>
 #include <vector>
 
-#include "slamvdb/inference/encoders.hpp"
+#include "slamvdb/core/feature_map.hpp"
 
 namespace slamvdb {
 

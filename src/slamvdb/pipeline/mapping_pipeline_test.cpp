@@ -11,7 +11,7 @@
 #include "slamvdb/core/ontology.hpp"
 #include "slamvdb/inference/simulated_encoders.hpp"
 #include "slamvdb/io/image_io.hpp"
-#include "slamvdb/io/map_store.hpp"
+#include "slamvdb/store/map_store.hpp"
 #include "slamvdb/io/npy.hpp"
 #include "slamvdb/io/scan_io.hpp"
 #include "slamvdb/io/sequence_reader.hpp"

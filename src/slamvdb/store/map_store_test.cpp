@@ -1,4 +1,4 @@
-#include "slamvdb/io/map_store.hpp"
+#include "slamvdb/store/map_store.hpp"
 
 #include <gtest/gtest.h>
 #include <signal.h>
