@@ -66,7 +66,7 @@ void run(const Options& opt) {
     BirdsEyeParams params;
     params.resolution = opt.resolution;
     params.hill_shading = opt.hill_shading;
-    const BirdsEyeImage image = render_birds_eye(voxels, map.params.occupancy.voxel_size, params);
+    const BirdsEyeImage image = render_birds_eye(voxels, map.params().occupancy.voxel_size, params);
     write_png(opt.png, image);
     fmt::print("PNG  {}: {}x{} px at {:.3f} m per pixel in {:.1f} s\n", opt.png, image.rgb.cols, image.rgb.rows,
                image.resolution, seconds_since(start));

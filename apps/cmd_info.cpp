@@ -1,10 +1,12 @@
 // `slamvdb info`: what a map file holds (counts, sizes, submaps, parameters, model), read from its
-// metadata without loading the voxels.
+// metadata without loading the voxels; with --check, loaded and validated in full and read through
+// the global index (world frame).
 #include <fmt/format.h>
 
 #include <algorithm>
 #include <cmath>
 #include <memory>
+#include <optional>
 #include <nlohmann/json.hpp>
 
 #include "command_registry.hpp"
@@ -16,7 +18,30 @@ namespace {
 struct Options {
   std::string map;
   bool json = false;
+  bool check = false;
 };
+
+// What only a full load can tell: the map read through the global index, in the world frame.
+struct WorldFigures {
+  std::size_t index_cells = 0, index_cells_shared = 0, occupied_world_cells = 0;
+};
+
+WorldFigures read_world(const std::string& path) {
+  const SemanticMap map = load_map(path);
+  WorldFigures w;
+  w.index_cells = map.num_index_cells();
+  map.read_index([&](const GlobalIndex& index) {
+    for (std::size_t i = 0; i < index.size(); ++i) w.index_cells_shared += index.refs(i).size() > 1;
+  });
+  const float threshold = map.params().occupancy.occupied_threshold;
+  for (const WorldOccupancyCell& c : map.world_occupancy()) w.occupied_world_cells += c.log_odds >= threshold;
+  return w;
+}
+
+nlohmann::json time_range_json(const TimeRange& t) {
+  if (t.empty()) return nullptr;
+  return {t.begin, t.end};
+}
 
 // Roll, pitch, yaw (ZYX convention) in degrees; "+ 0.0" turns -0 into 0 for printing.
 Eigen::Vector3d rpy_degrees(const Pose& T) {
@@ -29,23 +54,26 @@ Eigen::Vector3d rpy_degrees(const Pose& T) {
 
 double per_voxel(uint64_t bytes, std::size_t voxels) { return voxels ? static_cast<double>(bytes) / voxels : 0.0; }
 
-nlohmann::json to_json(const std::string& path, const MapFileSummary& s) {
+nlohmann::json to_json(const std::string& path, const MapFileSummary& s, const std::optional<WorldFigures>& world) {
   nlohmann::json submaps = nlohmann::json::array();
   for (const SubmapSummary& sm : s.submaps) {
-    const Eigen::Matrix4d m = sm.T_world_submap.matrix();
+    const Pose& T = sm.info.T_world_submap;
+    const Eigen::Matrix4d m = T.matrix();
     nlohmann::json rows = nlohmann::json::array();
     for (int r = 0; r < 4; ++r) rows.push_back({m(r, 0), m(r, 1), m(r, 2), m(r, 3)});
-    const Eigen::Vector3d t = sm.T_world_submap.translation(), rpy = rpy_degrees(sm.T_world_submap);
-    submaps.push_back({{"id", sm.id},
+    const Eigen::Vector3d t = T.translation(), rpy = rpy_degrees(T);
+    submaps.push_back({{"id", sm.info.id},
                        {"T_world_submap", rows},
                        {"translation", {t.x(), t.y(), t.z()}},
                        {"rpy_deg", {rpy.x(), rpy.y(), rpy.z()}},
+                       {"time_range", time_range_json(sm.info.time_range)},
+                       {"path_length", sm.info.path_length},
                        {"blocks", sm.blocks},
                        {"known_voxels", sm.known_voxels},
                        {"occupied_voxels", sm.occupied_voxels},
                        {"semantic_voxels", sm.semantic_voxels}});
   }
-  return {{"path", path},
+  nlohmann::json j = {{"path", path},
           {"format_version", s.format_version},
           {"voxels", {{"known", s.known_voxels}, {"occupied", s.occupied_voxels}, {"semantic", s.semantic_voxels}}},
           {"bytes",
@@ -61,12 +89,19 @@ nlohmann::json to_json(const std::string& path, const MapFileSummary& s) {
           {"model_id", s.info.model_id},
           {"ontology", s.info.ontology},
           {"source", s.info.source},
+          {"submap_length", s.params.submap_length},
           {"submaps", submaps}};
+  if (world)
+    j["check"] = {{"ok", true},
+                  {"index_cells", world->index_cells},
+                  {"index_cells_in_several_submaps", world->index_cells_shared},
+                  {"occupied_world_cells", world->occupied_world_cells}};
+  return j;
 }
 
 std::string megabytes(uint64_t bytes) { return fmt::format("{:.1f} MB", static_cast<double>(bytes) / 1e6); }
 
-void print_text(const std::string& path, const MapFileSummary& s) {
+void print_text(const std::string& path, const MapFileSummary& s, const std::optional<WorldFigures>& world) {
   fmt::print("map        {} (format version {})\n", path, s.format_version);
   fmt::print("voxels     {} known, {} occupied (voxel size {} m)\n", s.known_voxels, s.occupied_voxels,
              s.params.occupancy.voxel_size);
@@ -81,14 +116,22 @@ void print_text(const std::string& path, const MapFileSummary& s) {
   if (s.semantic_voxels)
     fmt::print(" = {:.0f} B per semantic voxel (whole file: {:.0f} B)", per_voxel(s.semantic_payload_bytes, s.semantic_voxels),
                per_voxel(s.file_bytes, s.semantic_voxels));
-  fmt::print("\nsubmaps    {}\n", s.submaps.size());
+  fmt::print("\nsubmaps    {} (a new one every {} of path)\n", s.submaps.size(),
+             s.params.submap_length > 0 ? fmt::format("{:g} m", s.params.submap_length) : std::string("... never"));
   for (const SubmapSummary& sm : s.submaps) {
-    const Eigen::Vector3d t = sm.T_world_submap.translation(), rpy = rpy_degrees(sm.T_world_submap);
-    fmt::print("  id {:<5} t = ({:.3f}, {:.3f}, {:.3f}) m  rpy = ({:.2f}, {:.2f}, {:.2f}) deg  {} known, {} occupied, "
-               "{} semantic voxels\n",
-               sm.id, t.x(), t.y(), t.z(), rpy.x(), rpy.y(), rpy.z(), sm.known_voxels, sm.occupied_voxels,
-               sm.semantic_voxels);
+    const Pose& T = sm.info.T_world_submap;
+    const Eigen::Vector3d t = T.translation(), rpy = rpy_degrees(T);
+    const TimeRange& tr = sm.info.time_range;
+    fmt::print("  id {:<4} t = ({:.2f}, {:.2f}, {:.2f}) m  rpy = ({:.1f}, {:.1f}, {:.1f}) deg  time {}  path {:.1f} m  "
+               "{} known, {} occupied, {} semantic voxels\n",
+               sm.info.id, t.x(), t.y(), t.z(), rpy.x(), rpy.y(), rpy.z(),
+               tr.empty() ? std::string("(none)") : fmt::format("{:.3f}..{:.3f} s", tr.begin, tr.end),
+               sm.info.path_length, sm.known_voxels, sm.occupied_voxels, sm.semantic_voxels);
   }
+  if (world)
+    fmt::print("check      OK: every row loads and holds possible values; global index {} cells ({} shared by several "
+               "submaps), {} occupied world cells\n",
+               world->index_cells, world->index_cells_shared, world->occupied_world_cells);
 }
 
 void add(CLI::App& root) {
@@ -97,10 +140,15 @@ void add(CLI::App& root) {
                                           "voxel size, embedding dimension and precision, model, ontology, source");
   cmd->add_option("map", opt->map, "Map file (.svdb)")->required();
   cmd->add_flag("--json", opt->json, "Print JSON instead of text");
+  cmd->add_flag("--check", opt->check,
+                "Load every row and validate it (checksums and meaning: finite values, rigid poses, unique keys, "
+                "keys in range), then read the map through the global index");
   cmd->callback([opt] {
     const MapFileSummary s = read_map_summary(opt->map);
-    if (opt->json) fmt::print("{}\n", to_json(opt->map, s).dump(2));
-    else print_text(opt->map, s);
+    std::optional<WorldFigures> world;
+    if (opt->check) world = read_world(opt->map);
+    if (opt->json) fmt::print("{}\n", to_json(opt->map, s, world).dump(2));
+    else print_text(opt->map, s, world);
   });
 }
 

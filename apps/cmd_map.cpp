@@ -31,6 +31,7 @@ struct Options {
   PipelineOptions pipeline;
   SimulatedEncoderConfig sim;
   bool realtime = false;
+  std::string occlusion = "active";
 };
 
 std::array<double, 5> parse_distortion(const std::string& text) {
@@ -79,6 +80,10 @@ std::unique_ptr<FeatureSource> make_feature_source(const Options& opt, const Seq
 }
 
 void run(Options opt) {
+  if (opt.occlusion != "active" && opt.occlusion != "all")
+    throw Error(fmt::format("--occlusion '{}': expected active or all", opt.occlusion));
+  opt.pipeline.fusion.occlusion_from_other_submaps = opt.occlusion == "all";
+  opt.pipeline.map.validate();
   ReadOptions read_options;
   if (!opt.distortion.empty()) read_options.distortion = parse_distortion(opt.distortion);
   const Sequence seq = read_sequence(opt.dataset, read_options);
@@ -98,10 +103,15 @@ void run(Options opt) {
   if (bar) bar->finish();
   fmt::print("{}\n", report.summary());
   save_map(opt.output, map);
-  const SemanticLayer& layer = map.submaps.front().map.semantics();
-  fmt::print("map saved to {}: {} occupied voxels, {} semantic voxels ({} {}-d, {:.0f} B each in memory), "
-             "{:.1f} MB in memory\n", opt.output, map.num_occupied_voxels(), map.num_semantic_voxels(), opt.precision,
-             map.params.semantic.dim, layer.bytes_per_entry(), map.memory_bytes() / 1e6);
+  std::size_t semantic_bytes = 0;
+  for (const SubmapInfo& info : map.submaps())
+    map.read_submap(info.id, [&](const Submap& s) { semantic_bytes += s.voxels().semantics().memory_bytes(); });
+  const std::size_t semantic = map.num_semantic_voxels();
+  fmt::print("map saved to {}: {} submaps, {} occupied voxels, {} semantic entries ({} {}-d, {:.0f} B each in "
+             "memory) in {} world cells of the global index, {:.1f} MB in memory\n",
+             opt.output, map.num_submaps(), map.num_occupied_voxels(), semantic, opt.precision,
+             map.params().semantic.dim, semantic ? static_cast<double>(semantic_bytes) / semantic : 0.0,
+             map.num_index_cells(), map.memory_bytes() / 1e6);
 }
 
 void add(CLI::App& root) {
@@ -120,6 +130,13 @@ void add(CLI::App& root) {
   cmd->add_option("--threads", opt->threads, "Network threads (-1: the manifest's setting)")->capture_default_str();
   auto& m = opt->pipeline.map;
   cmd->add_option("--voxel-size", m.occupancy.voxel_size, "Voxel edge in metres")->capture_default_str();
+  cmd->add_option("--submap-length", m.submap_length,
+                  "Start a new submap after this many metres of path (0: one submap for the whole run)")
+      ->capture_default_str();
+  cmd->add_option("--occlusion", opt->occlusion,
+                  "Which voxels occlude during fusion: 'active' (the submap being written) or 'all' (also the "
+                  "finished submaps near the camera)")
+      ->capture_default_str();
   cmd->add_option("--dim", m.semantic.dim, "Embedding dimension")->capture_default_str();
   cmd->add_option("--precision", opt->precision, "Embedding storage: fp16 or fp32")->capture_default_str();
   cmd->add_option("--min-range", m.occupancy.min_point_range, "Drop returns closer than this (m)")->capture_default_str();

@@ -21,24 +21,23 @@ double view_cone_half_angle(const CameraModel& c) {
 
 }  // namespace
 
-const Association& ProjectiveFusion::associate(const OccupancyGrid& grid, const CameraModel& camera,
-                                               const Pose& T_map_camera) {
-  camera.validate();
-  const int W = camera.width, H = camera.height;
-  Association& a = assoc_;
-  a.width = W;
-  a.height = H;
-  a.voxels.clear();
-  a.pixel_count.clear();
-  a.owner.assign(static_cast<std::size_t>(W) * H, -1);
-  depth_.assign(static_cast<std::size_t>(W) * H, std::numeric_limits<float>::infinity());
-  candidate_keys_.clear();
+FusionStats& FusionStats::operator+=(const FusionStats& o) {
+  candidates += o.candidates, fused_voxels += o.fused_voxels, occluded += o.occluded;
+  pixels_used += o.pixels_used, pixels_total += o.pixels_total, pixels_other_submaps += o.pixels_other_submaps;
+  pixels_nonfinite += o.pixels_nonfinite, pixels_zero += o.pixels_zero;
+  frames_refused_invalid += o.frames_refused_invalid;
+  return *this;
+}
 
-  const Pose T_camera_map = T_map_camera.inverse();
-  const Eigen::Matrix3d R = T_camera_map.linear();
-  const Vec3d t = T_camera_map.translation();
+// Rasterises every occupied voxel of `grid` in the view volume into the depth buffer. Target
+// voxels become candidates; voxels of another submap only occlude (owner kOtherSubmap).
+void ProjectiveFusion::rasterise(const OccupancyGrid& grid, const CameraModel& camera, const Pose& T_camera_grid,
+                                 bool target) {
+  const int W = camera.width, H = camera.height;
+  const Eigen::Matrix3d R = T_camera_grid.linear();
+  const Vec3d t = T_camera_grid.translation();
   const double vs = grid.voxel_size();
-  const double block_radius = OccupancyGrid::kBlockSide * vs * std::sqrt(3.0) / 2;
+  const double block_radius = kBlockSide * vs * std::sqrt(3.0) / 2;
   const double cone = view_cone_half_angle(camera);
   const bool distorted = camera.has_distortion();
 
@@ -47,22 +46,20 @@ const Association& ProjectiveFusion::associate(const OccupancyGrid& grid, const 
   for (int k = 0; k < 8; ++k)
     corner[k] = R * Vec3d((k & 1 ? 0.5 : -0.5) * vs, (k & 2 ? 0.5 : -0.5) * vs, (k & 4 ? 0.5 : -0.5) * vs);
 
-  // Pass 1: rasterise every candidate into the depth buffer.
-  std::vector<int32_t>& owner = a.owner;
-  int32_t candidate = 0;
-  grid.for_each_block_near(T_map_camera.translation(), params_.max_depth + block_radius,
-                           [&](const VoxelKey& bk, const OccupancyGrid::Block& block) {
+  std::vector<int32_t>& owner = assoc_.owner;
+  const Vec3d camera_in_grid = T_camera_grid.inverse().translation();
+  grid.for_each_block_near(camera_in_grid, params_.max_depth + block_radius,
+                           [&](const BlockKey& bk, const OccupancyGrid::Block& block) {
     if (block.num_occupied == 0) return;
-    const Vec3d block_center = ((bk.cast<double>() * OccupancyGrid::kBlockSide).array() +
-                                OccupancyGrid::kBlockSide / 2.0).matrix() * vs;
+    const Vec3d block_center = ((bk.cast<double>() * kBlockSide).array() + kBlockSide / 2.0).matrix() * vs;
     const Vec3d pb = R * block_center + t;
     const double db = pb.norm();
     if (db - block_radius > params_.max_depth || pb.z() + block_radius < params_.min_depth) return;
     if (db > block_radius && std::acos(std::clamp(pb.z() / db, -1.0, 1.0)) > cone + std::asin(block_radius / db))
       return;
-    for (int i = 0; i < OccupancyGrid::kBlockVoxels; ++i) {
+    for (int i = 0; i < kBlockVoxels; ++i) {
       if (!block.occupied(i)) continue;
-      const VoxelKey key = OccupancyGrid::voxel_key(bk, i);
+      const VoxelKey key = voxel_of(bk, i);
       const Vec3d p = R * grid.center_of(key) + t;
       const double dist = p.norm();
       if (p.z() < params_.min_depth || dist > params_.max_depth) continue;
@@ -95,22 +92,47 @@ const Association& ProjectiveFusion::associate(const OccupancyGrid& grid, const 
       x0 = std::max(x0, 0), y0 = std::max(y0, 0), x1 = std::min(x1, W - 1), y1 = std::min(y1, H - 1);
       if (x0 > x1 || y0 > y1) continue;  // entirely outside the image
       const float d = static_cast<float>(dist);
+      const int32_t id = target ? static_cast<int32_t>(candidate_keys_.size()) : Association::kOtherSubmap;
       for (int y = y0; y <= y1; ++y) {
         float* drow = depth_.data() + static_cast<std::size_t>(y) * W;
         int32_t* orow = owner.data() + static_cast<std::size_t>(y) * W;
         for (int x = x0; x <= x1; ++x)
-          if (d < drow[x]) drow[x] = d, orow[x] = candidate;
+          if (d < drow[x]) drow[x] = d, orow[x] = id;
       }
-      candidate_keys_.push_back(key);
-      ++candidate;
+      if (target) candidate_keys_.push_back(key);
     }
   });
+}
+
+const Association& ProjectiveFusion::associate(const OccupancyGrid& grid, const CameraModel& camera,
+                                               const Pose& T_submap_camera, std::span<const PlacedVoxelMap> occluders,
+                                               const Pose& T_world_submap) {
+  camera.validate();
+  const int W = camera.width, H = camera.height;
+  Association& a = assoc_;
+  a.width = W;
+  a.height = H;
+  a.voxels.clear();
+  a.pixel_count.clear();
+  a.pixels_other_submaps = 0;
+  a.owner.assign(static_cast<std::size_t>(W) * H, Association::kNone);
+  depth_.assign(static_cast<std::size_t>(W) * H, std::numeric_limits<float>::infinity());
+  candidate_keys_.clear();
+
+  // Pass 1: rasterise every candidate (and every occluder) into the depth buffer.
+  const Pose T_camera_submap = T_submap_camera.inverse();
+  rasterise(grid, camera, T_camera_submap, true);
+  const Pose T_camera_world = T_camera_submap * T_world_submap.inverse();
+  for (const PlacedVoxelMap& o : occluders) rasterise(o.voxels->occupancy(), camera, T_camera_world * o.T_world_submap, false);
   a.candidates = candidate_keys_.size();
 
   // Pass 2: renumber the candidates that kept pixels; the rest were occluded.
   std::vector<int32_t> compact(candidate_keys_.size(), -1);
-  for (int32_t& o : owner) {
-    if (o < 0) continue;
+  for (int32_t& o : a.owner) {
+    if (o < 0) {
+      a.pixels_other_submaps += o == Association::kOtherSubmap;
+      continue;
+    }
     int32_t& c = compact[o];
     if (c < 0) {
       c = static_cast<int32_t>(a.voxels.size());
@@ -124,9 +146,10 @@ const Association& ProjectiveFusion::associate(const OccupancyGrid& grid, const 
   return a;
 }
 
-FusionStats ProjectiveFusion::fuse(VoxelMap& map, const FeatureMap& features, const CameraModel& camera,
-                                   const Pose& T_map_camera) {
-  const int dim = map.semantics().dim();
+FusionStats ProjectiveFusion::fuse(VoxelMap& submap, const FeatureMap& features, const CameraModel& camera,
+                                   const Pose& T_submap_camera, std::span<const PlacedVoxelMap> occluders,
+                                   const Pose& T_world_submap) {
+  const int dim = submap.semantics().dim();
   if (features.dim != dim)
     throw Error(fmt::format("feature map has {} channels but the map stores {}-d embeddings", features.dim, dim));
   if (features.width != camera.width || features.height != camera.height)
@@ -135,27 +158,51 @@ FusionStats ProjectiveFusion::fuse(VoxelMap& map, const FeatureMap& features, co
   if (features.data.size() != static_cast<std::size_t>(dim) * features.width * features.height)
     throw Error("feature map data size does not match its shape");
 
-  const Association& a = associate(map.occupancy(), camera, T_map_camera);
+  const Association& a = associate(submap.occupancy(), camera, T_submap_camera, occluders, T_world_submap);
   FusionStats stats;
   stats.candidates = a.candidates;
   stats.occluded = a.occluded;
-  stats.fused_voxels = a.voxels.size();
   stats.pixels_total = a.owner.size();
+  stats.pixels_other_submaps = a.pixels_other_submaps;
 
-  accum_.assign(a.voxels.size() * dim, 0.0f);
+  // A pixel whose feature vector is not finite (a network's fp16 overflow, a damaged file) or
+  // all zero carries no observation: it is skipped and counted, so that one bad frame can never
+  // turn a voxel's running mean into NaN for good.
+  const auto udim = static_cast<std::size_t>(dim);
+  pixel_valid_.assign(a.owner.size(), 0);
+  std::size_t on_voxels = 0;
+  for (std::size_t p = 0; p < a.owner.size(); ++p) {
+    if (a.owner[p] < 0) continue;
+    ++on_voxels;
+    const float n2 = kernels::squared_norm({features.data.data() + p * udim, EmbeddingPrecision::kFloat32}, udim);
+    if (!std::isfinite(n2)) ++stats.pixels_nonfinite;
+    else if (n2 == 0.0f) ++stats.pixels_zero;
+    else pixel_valid_[p] = 1;
+  }
+  const std::size_t invalid = stats.pixels_nonfinite + stats.pixels_zero;
+  if (on_voxels > 0 && static_cast<double>(invalid) > params_.max_invalid_fraction * static_cast<double>(on_voxels)) {
+    stats.frames_refused_invalid = 1;
+    return stats;
+  }
+
+  accum_.assign(a.voxels.size() * udim, 0.0f);
+  valid_count_.assign(a.voxels.size(), 0);
   const float* f = features.data.data();
   for (std::size_t p = 0; p < a.owner.size(); ++p, f += dim) {
+    if (!pixel_valid_[p]) continue;
     const int32_t o = a.owner[p];
-    if (o < 0) continue;
-    float* acc = accum_.data() + static_cast<std::size_t>(o) * dim;
+    float* acc = accum_.data() + static_cast<std::size_t>(o) * udim;
     for (int c = 0; c < dim; ++c) acc[c] += f[c];
+    ++valid_count_[o];
     ++stats.pixels_used;
   }
   for (std::size_t v = 0; v < a.voxels.size(); ++v) {
-    float* acc = accum_.data() + v * dim;
-    const float inv = 1.0f / static_cast<float>(a.pixel_count[v]);
+    if (valid_count_[v] == 0) continue;
+    float* acc = accum_.data() + v * udim;
+    const float inv = 1.0f / static_cast<float>(valid_count_[v]);
     for (int c = 0; c < dim; ++c) acc[c] *= inv;
-    map.semantics().integrate(a.voxels[v], acc);
+    submap.semantics().integrate(a.voxels[v], acc);
+    ++stats.fused_voxels;
   }
   return stats;
 }

@@ -86,7 +86,7 @@ TEST(ProjectiveFusion, AllPixelsOfAVoxelMakeOneUpdateWithTheirMean) {
   fusion.fuse(map, pixel_coordinate_features(feature_camera()), feature_camera(), Pose::Identity());
   const auto slot = map.semantics().find(map.occupancy().key_of(center));
   ASSERT_TRUE(slot);
-  EXPECT_EQ(map.semantics().count_at(*slot), 1u);
+  EXPECT_EQ(map.semantics().count_of(*slot), 1u);
   float v[3];
   map.semantics().read(*slot, v);
   EXPECT_NEAR(v[0], mx, 1e-3);

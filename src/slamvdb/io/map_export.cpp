@@ -32,24 +32,6 @@ float quantile(std::vector<float>& v, double q) {
 
 uint8_t to_channel(float t) { return static_cast<uint8_t>(std::lround(std::clamp(t, 0.0f, 1.0f) * 255.0f)); }
 
-struct SemanticRef {
-  const Submap* submap;
-  VoxelKey key;
-  SemanticLayer::Slot slot;
-};
-
-// Every semantic entry in (submap, key) order, independent of hash-table order.
-std::vector<SemanticRef> semantic_entries_in_key_order(const SemanticMap& map) {
-  std::vector<SemanticRef> refs;
-  refs.reserve(map.num_semantic_voxels());
-  for (const Submap& s : map.submaps)
-    s.map.semantics().for_each([&](const VoxelKey& k, SemanticLayer::Slot slot) { refs.push_back({&s, k, slot}); });
-  std::sort(refs.begin(), refs.end(), [](const SemanticRef& a, const SemanticRef& b) {
-    return std::tie(a.submap, a.key.z(), a.key.y(), a.key.x()) < std::tie(b.submap, b.key.z(), b.key.y(), b.key.x());
-  });
-  return refs;
-}
-
 }  // namespace
 
 Rgb PcaColouring::colour(const float* embedding) const {
@@ -60,16 +42,23 @@ Rgb PcaColouring::colour(const float* embedding) const {
 }
 
 PcaColouring fit_pca_colouring(const SemanticMap& map, std::size_t max_samples) {
-  const std::vector<SemanticRef> refs = semantic_entries_in_key_order(map);
-  if (refs.empty()) throw Error("the map has no semantic voxels to fit a PCA colouring on");
-  const int dim = map.params.semantic.dim;
-  const std::size_t stride = (refs.size() + std::max<std::size_t>(max_samples, 1) - 1) / std::max<std::size_t>(max_samples, 1);
-  const auto m = static_cast<Eigen::Index>((refs.size() + stride - 1) / stride);
-  Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> X(m, dim);
-  for (Eigen::Index i = 0; i < m; ++i) {
-    const SemanticRef& r = refs[static_cast<std::size_t>(i) * stride];
-    r.submap->map.semantics().read(r.slot, X.row(i).data());
-  }
+  const int dim = map.params().semantic.dim;
+  Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> X;
+  map.read_index([&](const GlobalIndex& index) {
+    if (index.size() == 0) throw Error("the map has no semantic voxels to fit a PCA colouring on");
+    // An even subsample in key order: the same map always gets the same colours.
+    const std::vector<std::size_t> order = index.order_by_key();
+    const std::size_t samples = std::max<std::size_t>(max_samples, 1);
+    const std::size_t stride = (order.size() + samples - 1) / samples;
+    const auto m = static_cast<Eigen::Index>((order.size() + stride - 1) / stride);
+    X.resize(m, dim);
+    std::vector<float> scratch(static_cast<std::size_t>(dim));
+    for (Eigen::Index i = 0; i < m; ++i) {
+      const IndexedVoxel v = index.read(order[static_cast<std::size_t>(i) * stride], scratch.data());
+      kernels::decode(v.embedding, X.row(i).data(), static_cast<std::size_t>(dim));
+    }
+  });
+  const Eigen::Index m = X.rows();
   PcaColouring pca;
   pca.mean = X.colwise().mean().transpose();
   X.rowwise() -= pca.mean.transpose();
@@ -94,25 +83,34 @@ PcaColouring fit_pca_colouring(const SemanticMap& map, std::size_t max_samples) 
 }
 
 std::vector<ColouredVoxel> colour_occupied_voxels(const SemanticMap& map, const EmbeddingColour& semantic_colour) {
+  // Occupied cells of the world occupancy and semantic cells of the index, merged in key order.
+  const std::vector<WorldOccupancyCell> occupancy = map.world_occupancy();
+  const float threshold = map.params().occupancy.occupied_threshold;
   std::vector<ColouredVoxel> voxels;
-  voxels.reserve(map.num_occupied_voxels());
   std::vector<std::size_t> grey;  // voxels without semantics, coloured once the height range is known
-  std::vector<float> embedding(static_cast<std::size_t>(map.params.semantic.dim));
-  for (const Submap& s : map.submaps) {
-    const OccupancyGrid& grid = s.map.occupancy();
-    const SemanticLayer& layer = s.map.semantics();
-    grid.for_each_occupied([&](const VoxelKey& k, float) {
-      ColouredVoxel v{(s.T_world_submap * grid.center_of(k)).cast<float>(), {0, 0, 0}, 0};
-      if (const auto slot = layer.find(k)) {
-        layer.read(*slot, embedding.data());
-        v.rgb = semantic_colour(embedding.data());
-        v.count = layer.count_at(*slot);
-      } else {
+  std::vector<float> scratch(static_cast<std::size_t>(map.params().semantic.dim));
+  std::vector<float> embedding(scratch.size());
+  map.read_index([&](const GlobalIndex& index) {
+    const std::vector<std::size_t> order = index.order_by_key();
+    voxels.reserve(occupancy.size() + order.size());
+    const double cell = index.cell_size();
+    std::size_t s = 0;
+    auto add_semantic = [&](std::size_t i) {
+      const IndexedVoxel v = index.read(i, scratch.data());
+      kernels::decode(v.embedding, embedding.data(), embedding.size());
+      voxels.push_back({v.position_world.cast<float>(), semantic_colour(embedding.data()), v.count});
+    };
+    for (const WorldOccupancyCell& c : occupancy) {
+      while (s < order.size() && index.key(order[s]) < c.cell) add_semantic(order[s++]);
+      if (s < order.size() && index.key(order[s]) == c.cell) {
+        add_semantic(order[s++]);
+      } else if (c.log_odds >= threshold) {
         grey.push_back(voxels.size());
+        voxels.push_back({center_of_key(c.cell, cell).cast<float>(), {0, 0, 0}, 0});
       }
-      voxels.push_back(v);
-    });
-  }
+    }
+    while (s < order.size()) add_semantic(order[s++]);
+  });
   if (grey.empty()) return voxels;
   std::vector<float> heights(voxels.size());
   for (std::size_t i = 0; i < voxels.size(); ++i) heights[i] = voxels[i].position.z();
@@ -126,7 +124,7 @@ std::vector<ColouredVoxel> colour_occupied_voxels(const SemanticMap& map, const 
 }
 
 std::vector<ColouredVoxel> colour_by_pca(const SemanticMap& map) {
-  if (map.num_semantic_voxels() == 0) return colour_occupied_voxels(map, [](const float*) { return Rgb{}; });
+  if (map.num_index_cells() == 0) return colour_occupied_voxels(map, [](const float*) { return Rgb{}; });
   const PcaColouring pca = fit_pca_colouring(map);
   return colour_occupied_voxels(map, [&](const float* e) { return pca.colour(e); });
 }

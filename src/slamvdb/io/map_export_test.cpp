@@ -33,17 +33,19 @@ class MapExportTest : public ::testing::Test {
   fs::path dir_;
 };
 
-SemanticMap empty_map(double voxel_size, int dim) {
-  SemanticMap map;
-  map.params.occupancy.voxel_size = voxel_size;
-  map.params.semantic = {dim, EmbeddingPrecision::kFloat32};
-  return map;
+MapParams params_of(double voxel_size, int dim) {
+  MapParams params;
+  params.occupancy.voxel_size = voxel_size;
+  params.semantic = {dim, EmbeddingPrecision::kFloat32};
+  return params;
 }
+
+SemanticMap empty_map(double voxel_size, int dim) { return SemanticMap(params_of(voxel_size, dim)); }
 
 TEST(MapExport, PcaRecoversTheAxesOfLargestVarianceAndMapsThemToChannels) {
   constexpr int dim = 16;
   SemanticMap map = empty_map(1.0, dim);
-  map.submaps.emplace_back(0, Pose::Identity(), map.params);
+  VoxelMap voxels(map.params());
   std::mt19937 rng(3);
   std::normal_distribution<double> g;
   Eigen::MatrixXd random(dim, dim);
@@ -59,8 +61,9 @@ TEST(MapExport, PcaRecoversTheAxesOfLargestVarianceAndMapsThemToChannels) {
     for (int j = -4; j <= 4; ++j)
       for (int k = -4; k <= 4; ++k) {
         const Eigen::VectorXf e = embedding(0.75f * i, 0.5f * j, 0.25f * k);
-        map.submaps[0].map.semantics().set({x++, 0, 0}, e.data(), 1);
+        voxels.semantics().set({x++, 0, 0}, e.data(), 1);
       }
+  map.add_finished_submap({}, std::move(voxels));
   const PcaColouring pca = fit_pca_colouring(map);
   for (int c = 0; c < 3; ++c) EXPECT_GT(std::abs(pca.components.row(c).dot(basis.col(c))), 0.999f) << c;
   EXPECT_LT((pca.mean - mean).norm(), 1e-5f);
@@ -82,20 +85,23 @@ TEST(MapExport, VoxelsArePlacedInTheWorldAndUnlabelledOnesGreyByHeight) {
   Pose T = Pose::Identity();
   T.linear() = Eigen::AngleAxisd(M_PI / 2, Vec3d::UnitZ()).toRotationMatrix();
   T.translation() = Vec3d(10, 0, 0);
-  map.submaps.emplace_back(0, T, map.params);
-  OccupancyGrid& grid = map.submaps[0].map.occupancy();
+  VoxelMap voxels(map.params());
+  OccupancyGrid& grid = voxels.occupancy();
   grid.set_log_odds({0, 0, 0}, 1.0f);
   grid.set_log_odds({0, 0, 5}, 1.0f);
   grid.set_log_odds({3, 0, 0}, 1.0f);
   grid.set_log_odds({4, 0, 0}, -1.0f);  // free: not exported
   const float e[4] = {1, 2, 3, 4};
-  map.submaps[0].map.semantics().set({3, 0, 0}, e, 7);
-  const auto voxels = colour_occupied_voxels(map, [](const float* v) {
+  voxels.semantics().set({3, 0, 0}, e, 7);
+  SubmapInfo info;
+  info.T_world_submap = T;
+  map.add_finished_submap(info, std::move(voxels));
+  const auto coloured = colour_occupied_voxels(map, [](const float* v) {
     return Rgb{static_cast<uint8_t>(v[0]), static_cast<uint8_t>(v[1]), static_cast<uint8_t>(v[3])};
   });
-  ASSERT_EQ(voxels.size(), 3u);
+  ASSERT_EQ(coloured.size(), 3u);
   auto at = [&](const Vec3f& p) {
-    for (const ColouredVoxel& v : voxels)
+    for (const ColouredVoxel& v : coloured)
       if ((v.position - p).norm() < 1e-5f) return v;
     ADD_FAILURE() << "no voxel at " << p.transpose();
     return ColouredVoxel{};
@@ -266,25 +272,29 @@ CliRun run_cli(const std::string& args) {
 std::string quoted(const fs::path& p) { return fmt::format("'{}'", p.string()); }
 
 SemanticMap small_semantic_map() {
-  SemanticMap map;
-  map.params.semantic = {16, EmbeddingPrecision::kFloat16};
-  map.info = {"simulated-clip-16", "rellis3d", "SIMULATED CLI test map"};
+  MapParams params;
+  params.semantic = {16, EmbeddingPrecision::kFloat16};
+  SemanticMap map(params, {"simulated-clip-16", "rellis3d", "SIMULATED CLI test map"});
   Pose T = Pose::Identity();
   T.translation() = Vec3d(20, -5, 1);
-  map.submaps.emplace_back(0, Pose::Identity(), map.params);
-  map.submaps.emplace_back(1, T, map.params);
   std::mt19937 rng(5);
   std::uniform_real_distribution<float> unit(-1, 1);
   float e[16];
-  for (Submap& s : map.submaps)
+  for (int id : {0, 1}) {
+    VoxelMap s(params);
     for (int x = 0; x < 30; ++x)
       for (int y = 0; y < 20; ++y) {
-        s.map.occupancy().set_log_odds({x, y, x / 10}, 2.0f);
-        s.map.occupancy().set_log_odds({x, y, x / 10 + 1}, -1.0f);
+        s.occupancy().set_log_odds({x, y, x / 10}, 2.0f);
+        s.occupancy().set_log_odds({x, y, x / 10 + 1}, -1.0f);
         if (y % 2) continue;
         for (float& v : e) v = unit(rng);
-        s.map.semantics().set({x, y, x / 10}, e, 1 + x);
+        s.semantics().set({x, y, x / 10}, e, 1 + x);
       }
+    SubmapInfo info;
+    info.id = id;
+    info.T_world_submap = id ? T : Pose::Identity();
+    map.add_finished_submap(info, std::move(s));
+  }
   return map;
 }
 

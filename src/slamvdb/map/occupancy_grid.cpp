@@ -28,6 +28,7 @@ ScanIntegrationStats& ScanIntegrationStats::operator+=(const ScanIntegrationStat
   dropped_nonfinite += o.dropped_nonfinite;
   dropped_no_return += o.dropped_no_return;
   dropped_too_close += o.dropped_too_close;
+  dropped_out_of_extent += o.dropped_out_of_extent;
   beyond_max_range += o.beyond_max_range;
   hit_updates += o.hit_updates;
   miss_updates += o.miss_updates;
@@ -42,12 +43,11 @@ OccupancyGrid::OccupancyGrid(const OccupancyParams& params) : params_(params) {
   inv_voxel_size_ = 1.0 / params_.voxel_size;
 }
 
-OccupancyGrid::Block& OccupancyGrid::block_at(const VoxelKey& block_key) {
+OccupancyGrid::Block& OccupancyGrid::block_at(const BlockKey& block_key) {
   auto& slot = blocks_[block_key];
   if (!slot) {
     slot = std::make_unique<Block>();
-    const VoxelKey region(block_key.x() >> kRegionBits, block_key.y() >> kRegionBits, block_key.z() >> kRegionBits);
-    regions_[region].emplace_back(block_key, slot.get());
+    regions_[region_of(block_key)].emplace_back(block_key, slot.get());
   }
   return *slot;
 }
@@ -82,13 +82,18 @@ void OccupancyGrid::update_voxel(Block& b, const VoxelKey& key, int i, float del
   ++(delta > 0 ? ctx.stats.hit_updates : ctx.stats.miss_updates);
 }
 
-ScanIntegrationStats OccupancyGrid::integrate_scan(const std::vector<Vec3f>& points_sensor, const Pose& T_world_sensor,
+ScanIntegrationStats OccupancyGrid::integrate_scan(const std::vector<Vec3f>& points_sensor, const Pose& T_grid_sensor,
                                                    std::vector<VoxelKey>* freed) {
   ScanIntegrationStats stats;
   stats.points = points_sensor.size();
+  const Vec3d origin = T_grid_sensor.translation();
+  const Eigen::Matrix3d R = T_grid_sensor.linear();
+  if (!T_grid_sensor.matrix().allFinite() || !in_extent(origin))
+    throw Error(fmt::format("sensor pose ({}, {}, {}) is outside the map's representable extent (+-{:.3g} m at "
+                            "{} m voxels) or not finite",
+                            origin.x(), origin.y(), origin.z(), kMaxGridCoordinate * params_.voxel_size,
+                            params_.voxel_size));
   const uint32_t scan = ++scan_counter_;
-  const Vec3d origin = T_world_sensor.translation();
-  const Eigen::Matrix3d R = T_world_sensor.linear();
 
   struct Ray {
     Vec3d dir;     // unit, world frame
@@ -112,8 +117,16 @@ ScanIntegrationStats OccupancyGrid::integrate_scan(const std::vector<Vec3f>& poi
       continue;
     }
     const bool hit = range <= params_.max_point_range;
+    const Vec3d dir = R * (p.cast<double>() / range);
+    const double length = hit ? range : params_.max_point_range;
+    // Both ends of what the ray touches must be representable: the end point (a hit) and the end
+    // of the cleared segment.
+    if (!in_extent(origin + dir * length) || !in_extent(origin + dir * std::min(length, params_.max_clearing_range))) {
+      ++stats.dropped_out_of_extent;
+      continue;
+    }
     if (!hit) ++stats.beyond_max_range;
-    rays.push_back({R * (p.cast<double>() / range), hit ? range : params_.max_point_range, hit});
+    rays.push_back({dir, length, hit});
   }
 
   // Rays are cast in parallel. A voxel is updated only by the thread that moves its stamp to this
@@ -125,12 +138,12 @@ ScanIntegrationStats OccupancyGrid::integrate_scan(const std::vector<Vec3f>& poi
 
   // serial = false: defer the ray at a missing block; serial = true: create blocks as needed.
   auto cast = [&](const Ray& r, uint32_t ray_index, bool hits, ScanContext& ctx, bool serial) {
-    VoxelKey cached_key(std::numeric_limits<int>::min(), 0, 0);
+    BlockKey cached_key(std::numeric_limits<int>::min(), 0, 0);
     Block* block = nullptr;
     bool stop = false;
     auto visit = [&](const VoxelKey& key, float delta) {
       if (stop) return;
-      const VoxelKey bk = block_key_of(key);
+      const BlockKey bk = block_of(key);
       if (!block || bk != cached_key) {
         if (serial) {
           block = &block_at(bk);
@@ -164,14 +177,13 @@ ScanIntegrationStats OccupancyGrid::integrate_scan(const std::vector<Vec3f>& poi
   // Creates the blocks a ray crosses: the same DDA at block resolution, an eighth of the steps.
   auto create_blocks = [&](const Ray& r, bool hits) {
     if (hits) {
-      block_at(block_key_of(key_of(origin + r.dir * r.range)));
+      block_at(block_of(key_of(origin + r.dir * r.range)));
       return;
     }
     const double clear = std::min(r.range, params_.max_clearing_range);
     const Vec3d to = (origin + r.dir * clear) * inv_voxel_size_ / kBlockSide;
-    traverse_voxels(from / kBlockSide, to, [&](const VoxelKey& bk) { block_at(bk); });
-    block_at(VoxelKey(static_cast<int>(std::floor(to.x())), static_cast<int>(std::floor(to.y())),
-                      static_cast<int>(std::floor(to.z()))));
+    traverse_voxels<BlockKey>(from / kBlockSide, to, [&](const BlockKey& bk) { block_at(bk); });
+    block_at(key_of_point<BlockKey>(to, 1.0));
   };
 
   // Hits first, all of them, so a voxel that is both an end point and on another ray counts as a
@@ -209,7 +221,7 @@ ScanIntegrationStats OccupancyGrid::integrate_scan(const std::vector<Vec3f>& poi
 }
 
 std::optional<float> OccupancyGrid::log_odds(const VoxelKey& k) const {
-  const auto it = blocks_.find(block_key_of(k));
+  const auto it = blocks_.find(block_of(k));
   if (it == blocks_.end()) return std::nullopt;
   const float v = it->second->cells[index_in_block(k)].log_odds;
   if (std::isnan(v)) return std::nullopt;
@@ -217,16 +229,30 @@ std::optional<float> OccupancyGrid::log_odds(const VoxelKey& k) const {
 }
 
 bool OccupancyGrid::is_occupied(const VoxelKey& k) const {
-  const auto it = blocks_.find(block_key_of(k));
+  const auto it = blocks_.find(block_of(k));
   return it != blocks_.end() && it->second->occupied(index_in_block(k));
 }
 
 void OccupancyGrid::set_log_odds(const VoxelKey& k, float value) {
-  Block& b = block_at(block_key_of(k));
+  Block& b = block_at(block_of(k));
   const int i = index_in_block(k);
   b.cells[i].log_odds = value;
   const bool occ = !std::isnan(value) && value >= params_.occupied_threshold;
   if (occ != b.occupied(i)) set_occupied_bit(b, i, occ);
+}
+
+void OccupancyGrid::set_block(const BlockKey& key, const float* log_odds) {
+  Block& b = block_at(key);
+  b.occupied_bits.fill(0);
+  b.num_occupied = 0;
+  for (int i = 0; i < kBlockVoxels; ++i) {
+    const float v = log_odds[i];
+    b.cells[i] = {v, 0};
+    if (!std::isnan(v) && v >= params_.occupied_threshold) {
+      b.occupied_bits[i >> 6] |= uint64_t{1} << (i & 63);
+      ++b.num_occupied;
+    }
+  }
 }
 
 std::size_t OccupancyGrid::num_known_voxels() const {

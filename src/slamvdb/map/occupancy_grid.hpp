@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "slamvdb/core/types.hpp"
+#include "slamvdb/map/keys.hpp"
 
 namespace slamvdb {
 
@@ -33,26 +34,19 @@ struct ScanIntegrationStats {
   std::size_t dropped_nonfinite = 0;   // NaN or Inf coordinates
   std::size_t dropped_no_return = 0;   // exactly at the sensor origin (how Ouster marks no return)
   std::size_t dropped_too_close = 0;   // closer than min_point_range
+  std::size_t dropped_out_of_extent = 0;  // the ray would leave the representable grid (keys.hpp)
   std::size_t beyond_max_range = 0;    // cleared up to max_point_range, not inserted as a hit
   std::size_t hit_updates = 0;         // voxels updated as occupied
   std::size_t miss_updates = 0;        // voxels updated as free
   std::size_t voxels_freed = 0;        // occupied -> free transitions
-  std::size_t dropped() const { return dropped_nonfinite + dropped_no_return + dropped_too_close; }
-  ScanIntegrationStats& operator+=(const ScanIntegrationStats& o);
-};
-
-struct VoxelKeyAbslHash {
-  std::size_t operator()(const VoxelKey& k) const noexcept {
-    return absl::Hash<std::tuple<int, int, int>>{}(std::make_tuple(k.x(), k.y(), k.z()));
+  std::size_t dropped() const {
+    return dropped_nonfinite + dropped_no_return + dropped_too_close + dropped_out_of_extent;
   }
+  ScanIntegrationStats& operator+=(const ScanIntegrationStats& o);
 };
 
 class OccupancyGrid {
  public:
-  static constexpr int kBlockBits = 3;
-  static constexpr int kBlockSide = 1 << kBlockBits;
-  static constexpr int kBlockVoxels = kBlockSide * kBlockSide * kBlockSide;
-
   // A voxel's log-odds and the last scan that updated it sit side by side: ray casting reads both.
   struct Cell {
     float log_odds;  // NaN = never observed
@@ -65,27 +59,30 @@ class OccupancyGrid {
     std::array<uint64_t, kBlockVoxels / 64> occupied_bits{};  // written atomically during a scan
     int num_occupied = 0;
   };
-  using BlockMap = absl::flat_hash_map<VoxelKey, std::unique_ptr<Block>, VoxelKeyAbslHash>;
+  using BlockMap = absl::flat_hash_map<BlockKey, std::unique_ptr<Block>>;
 
   explicit OccupancyGrid(const OccupancyParams& params = {});
 
-  // Inserts one scan given in the sensor frame. Keys of voxels that turned free are appended to
-  // `freed` (the semantic layer drops them).
-  ScanIntegrationStats integrate_scan(const std::vector<Vec3f>& points_sensor, const Pose& T_world_sensor,
+  // Inserts one scan given in the sensor frame; the grid's own frame is called "grid" (a submap's
+  // frame when the grid belongs to one). Keys of voxels that turned free are appended to `freed`
+  // (the semantic layer drops them). Throws Error when the sensor origin lies outside the
+  // representable extent; rays that would leave it are dropped and counted.
+  ScanIntegrationStats integrate_scan(const std::vector<Vec3f>& points_sensor, const Pose& T_grid_sensor,
                                       std::vector<VoxelKey>* freed = nullptr);
 
   const OccupancyParams& params() const { return params_; }
   double voxel_size() const { return params_.voxel_size; }
-  VoxelKey key_of(const Vec3d& p) const {
-    return {static_cast<int>(std::floor(p.x() * inv_voxel_size_)), static_cast<int>(std::floor(p.y() * inv_voxel_size_)),
-            static_cast<int>(std::floor(p.z() * inv_voxel_size_))};
-  }
-  Vec3d center_of(const VoxelKey& k) const { return (k.cast<double>().array() + 0.5).matrix() * params_.voxel_size; }
+  // p in the grid frame (metres), inside the extent (in_extent).
+  VoxelKey key_of(const Vec3d& p) const { return key_of_point<VoxelKey>(p, inv_voxel_size_); }
+  bool in_extent(const Vec3d& p) const { return in_grid_extent(p * inv_voxel_size_); }
+  Vec3d center_of(const VoxelKey& k) const { return center_of_key(k, params_.voxel_size); }
 
   std::optional<float> log_odds(const VoxelKey& k) const;  // nullopt when never observed
   bool is_occupied(const VoxelKey& k) const;
-  // Sets a voxel's log-odds directly (map loading, tests); NaN makes it unknown again.
+  // Sets a voxel's log-odds directly (merging, tests); NaN makes it unknown again.
   void set_log_odds(const VoxelKey& k, float value);
+  // Sets a whole block (map loading): kBlockVoxels log-odds, NaN for unknown.
+  void set_block(const BlockKey& key, const float* log_odds);
 
   std::size_t num_blocks() const { return blocks_.size(); }
   std::size_t num_known_voxels() const;
@@ -93,32 +90,29 @@ class OccupancyGrid {
   std::size_t memory_bytes() const;
   uint32_t scans_integrated() const { return scan_counter_; }
 
-  static VoxelKey block_key_of(const VoxelKey& k) { return {k.x() >> kBlockBits, k.y() >> kBlockBits, k.z() >> kBlockBits}; }
-  static int index_in_block(const VoxelKey& k) {
-    constexpr int m = kBlockSide - 1;
-    return (k.x() & m) | ((k.y() & m) << kBlockBits) | ((k.z() & m) << (2 * kBlockBits));
-  }
-  static VoxelKey voxel_key(const VoxelKey& block_key, int index) {
-    constexpr int m = kBlockSide - 1;
-    return {(block_key.x() << kBlockBits) | (index & m), (block_key.y() << kBlockBits) | ((index >> kBlockBits) & m),
-            (block_key.z() << kBlockBits) | (index >> (2 * kBlockBits))};
-  }
   const BlockMap& blocks() const { return blocks_; }
 
-  // f(block_key, block) for every block within `radius` of `center` (world metres), found through
+  // f(block_key, block) for every block within `radius` of `center` (grid frame, metres), found through
   // the region index, so the cost depends on the neighbourhood, not on the size of the map.
   template <class F>
   void for_each_block_near(const Vec3d& center, double radius, F&& f) const {
-    const double region_side = kBlockSide * kRegionSide * params_.voxel_size;
+    const double region_side = kBlockSide * (1 << kRegionBits) * params_.voxel_size;
     const Eigen::Vector3i lo = ((center.array() - radius) / region_side).floor().cast<int>();
     const Eigen::Vector3i hi = ((center.array() + radius) / region_side).floor().cast<int>();
     for (int x = lo.x(); x <= hi.x(); ++x)
       for (int y = lo.y(); y <= hi.y(); ++y)
         for (int z = lo.z(); z <= hi.z(); ++z) {
-          const auto it = regions_.find(VoxelKey(x, y, z));
+          const auto it = regions_.find(RegionKey(x, y, z));
           if (it == regions_.end()) continue;
           for (const auto& [bk, block] : it->second) f(bk, *block);
         }
+  }
+
+  template <class F>  // f(const VoxelKey&, float log_odds) for every known voxel
+  void for_each_known(F&& f) const {
+    for (const auto& [bk, block] : blocks_)
+      for (int i = 0; i < kBlockVoxels; ++i)
+        if (!std::isnan(block->cells[i].log_odds)) f(voxel_of(bk, i), block->cells[i].log_odds);
   }
 
   template <class F>  // f(const VoxelKey&, float log_odds)
@@ -126,30 +120,30 @@ class OccupancyGrid {
     for (const auto& [bk, block] : blocks_) {
       if (block->num_occupied == 0) continue;
       for (int i = 0; i < kBlockVoxels; ++i)
-        if (block->occupied(i)) f(voxel_key(bk, i), block->cells[i].log_odds);
+        if (block->occupied(i)) f(voxel_of(bk, i), block->cells[i].log_odds);
     }
   }
 
  private:
   struct ScanContext;
-  Block& block_at(const VoxelKey& block_key);
+  Block& block_at(const BlockKey& block_key);
   void set_occupied_bit(Block& b, int index, bool occupied);
   void update_voxel(Block& b, const VoxelKey& key, int index, float delta, ScanContext& ctx);
 
-  // Blocks grouped by region (kRegionSide^3 blocks, 16 m at 0.25 m voxels) for neighbourhood queries.
-  static constexpr int kRegionBits = 3, kRegionSide = 1 << kRegionBits;
-  using Region = std::vector<std::pair<VoxelKey, const Block*>>;
+  // Blocks grouped by region (8^3 blocks, 16 m at 0.25 m voxels) for neighbourhood queries.
+  using Region = std::vector<std::pair<BlockKey, const Block*>>;
 
   OccupancyParams params_;
   double inv_voxel_size_;
   BlockMap blocks_;
-  absl::flat_hash_map<VoxelKey, Region, VoxelKeyAbslHash> regions_;
+  absl::flat_hash_map<RegionKey, Region> regions_;
   uint32_t scan_counter_ = 0;
 };
 
-// Visits the voxels a segment crosses, from the one containing `from` up to (excluding) the one
-// containing `to` (3D DDA, Amanatides & Woo 1987). Coordinates in voxel units.
-template <class Visit>
+// Visits the cells a segment crosses, from the one containing `from` up to (excluding) the one
+// containing `to` (3D DDA, Amanatides & Woo 1987). Coordinates in cell units, inside the extent
+// (keys.hpp), so that no step overflows.
+template <class Key = VoxelKey, class Visit>
 void traverse_voxels(const Vec3d& from, const Vec3d& to, Visit&& visit) {
   // Scalars rather than indexed arrays: this loop runs millions of times per scan and indexed
   // stack arrays keep the state in memory instead of registers.
@@ -176,7 +170,7 @@ void traverse_voxels(const Vec3d& from, const Vec3d& to, Visit&& visit) {
   // by it keeps rounding at voxel corners from ever running past the end voxel.
   int remaining = std::abs(ex - kx) + std::abs(ey - ky) + std::abs(ez - kz);
   while (remaining-- > 0) {
-    visit(VoxelKey(kx, ky, kz));
+    visit(Key(kx, ky, kz));
     if (tx < ty) {
       if (tx < tz) kx += sx, tx += dx;
       else kz += sz, tz += dz;

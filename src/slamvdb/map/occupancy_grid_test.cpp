@@ -11,7 +11,8 @@ namespace slamvdb {
 namespace {
 
 using KeySet = std::set<std::tuple<int, int, int>>;
-std::tuple<int, int, int> tup(const VoxelKey& k) { return {k.x(), k.y(), k.z()}; }
+template <class Key>
+std::tuple<int, int, int> tup(const Key& k) { return {k.x(), k.y(), k.z()}; }
 
 // Brute force: every voxel in the bounding box whose cube the segment crosses with positive length.
 KeySet brute_force_voxels(const Vec3d& a, const Vec3d& b) {
@@ -150,7 +151,7 @@ TEST(OccupancyGrid, WorksTensOfKilometresFromTheOrigin) {
 
 TEST(OccupancyGrid, BlockIndexingRoundTripsForNegativeKeys) {
   for (const VoxelKey& k : {VoxelKey(-1, -8, -9), VoxelKey(7, 8, -17), VoxelKey(-100000, 3, 99999)}) {
-    EXPECT_EQ(OccupancyGrid::voxel_key(OccupancyGrid::block_key_of(k), OccupancyGrid::index_in_block(k)), k);
+    EXPECT_EQ(voxel_of(block_of(k), index_in_block(k)), k);
   }
 }
 
@@ -159,13 +160,13 @@ TEST(OccupancyGrid, NeighbourhoodQueryFindsNearBlocksOnly) {
   const Vec3d near(3.0, -2.0, 0.5), far(5000.0, 0.0, 0.0), edge(-39.0, 0.0, 0.0);
   for (const Vec3d& p : {near, far, edge}) grid.set_log_odds(grid.key_of(p), 1.0f);
   std::set<std::tuple<int, int, int>> seen;
-  grid.for_each_block_near(Vec3d::Zero(), 40.0, [&](const VoxelKey& bk, const OccupancyGrid::Block& b) {
+  grid.for_each_block_near(Vec3d::Zero(), 40.0, [&](const BlockKey& bk, const OccupancyGrid::Block& b) {
     EXPECT_EQ(b.num_occupied, 1);
     seen.insert(tup(bk));
   });
   EXPECT_EQ(seen.size(), 2u);
-  EXPECT_TRUE(seen.count(tup(OccupancyGrid::block_key_of(grid.key_of(near)))));
-  EXPECT_TRUE(seen.count(tup(OccupancyGrid::block_key_of(grid.key_of(edge)))));
+  EXPECT_TRUE(seen.count(tup(block_of(grid.key_of(near)))));
+  EXPECT_TRUE(seen.count(tup(block_of(grid.key_of(edge)))));
 }
 
 TEST(OccupancyGrid, RejectsInvalidParameters) {

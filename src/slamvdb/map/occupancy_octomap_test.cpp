@@ -60,11 +60,11 @@ TEST(OccupancyVsOctoMap, SameLogOddsVoxelByVoxel) {
 
   std::size_t ours = 0, same = 0, occupied_mismatch = 0;
   for (const auto& [bk, block] : grid.blocks()) {
-    for (int i = 0; i < OccupancyGrid::kBlockVoxels; ++i) {
+    for (int i = 0; i < kBlockVoxels; ++i) {
       const float lo = block->cells[i].log_odds;
       if (std::isnan(lo)) continue;
       ++ours;
-      const Vec3d c = grid.center_of(OccupancyGrid::voxel_key(bk, i));
+      const Vec3d c = grid.center_of(voxel_of(bk, i));
       const octomap::OcTreeNode* n = tree.search(c.x(), c.y(), c.z());
       if (n && std::abs(n->getLogOdds() - lo) < 1e-4f) ++same;
       if (!n || tree.isNodeOccupied(n) != block->occupied(i)) ++occupied_mismatch;

@@ -1,76 +1,137 @@
 #pragma once
 // The semantic layer: for each visually observed voxel, a running-average embedding and an
 // observation counter (paper Eq. 6.1). Most voxels are never seen by the camera, so this is a
-// key -> slot index beside the occupancy grid rather than a field of every voxel.
+// key -> entry store beside the occupancy grid rather than a field of every voxel.
+//
+// Entries live in chunks of kChunkSlots slots (keys, counts and embeddings side by side), so that
+// a query can read them as contiguous blocks (for_each_chunk) and the memory per entry stays at
+// the payload (no doubling on growth). An entry's handle (its slot) is stable until the entry is
+// erased; with change tracking on, an erased slot is not reused until the change log has been
+// taken, so a reader that holds handles (the global index) never sees a slot change meaning.
 #include <absl/container/flat_hash_map.h>
 
 #include <cstddef>
-#include <memory>
 #include <cstdint>
+#include <memory>
 #include <optional>
+#include <span>
 #include <string_view>
+#include <utility>
 #include <vector>
 
-#include "slamvdb/core/types.hpp"
-#include "slamvdb/map/occupancy_grid.hpp"
+#include "slamvdb/core/embedding_kernels.hpp"
+#include "slamvdb/map/keys.hpp"
 
 namespace slamvdb {
 
-// fp16 is the default: at 512-d it halves memory (1024 B instead of 2048 B of embedding per
-// voxel) for a cosine error below 1e-5 (see semantic_layer_test and README).
-enum class EmbeddingPrecision : uint8_t { kFloat32 = 0, kFloat16 = 1 };
 std::string_view to_string(EmbeddingPrecision p);
 EmbeddingPrecision precision_from_string(std::string_view s);  // "fp32" | "fp16"; throws Error
 
 struct SemanticParams {
   int dim = 512;
+  // Storage precision at rest (finished submaps, files). fp16 is the default: at 512-d it halves
+  // memory for a cosine error below 1e-5 (see semantic_layer_test and README).
   EmbeddingPrecision precision = EmbeddingPrecision::kFloat16;
 };
 
 class SemanticLayer {
  public:
-  using Slot = uint32_t;
-  explicit SemanticLayer(const SemanticParams& params = {});
+  using Handle = uint32_t;
+  static constexpr std::size_t kChunkSlots = 128;
 
-  // Eq. 6.1: v <- (n v + obs) / (n + 1), n <- n + 1; a new entry starts at n = 0.
+  // params.precision is this layer's storage precision (convert_to changes it).
+  explicit SemanticLayer(const SemanticParams& params = {});
+  SemanticLayer(const SemanticLayer&) = delete;
+  SemanticLayer& operator=(const SemanticLayer&) = delete;
+  SemanticLayer(SemanticLayer&&) = default;
+  SemanticLayer& operator=(SemanticLayer&&) = default;
+
+  // Eq. 6.1: v <- (n v + x) / (n + 1), n <- n + 1; a new entry starts at n = 0.
   void integrate(const VoxelKey& key, const float* observation);
-  // Writes an entry as is (map loading, merging). count must be >= 1.
+  // Eq. 6.1 for two means (merges, resampling): v <- (n v + c m) / (n + c), n <- n + c.
+  void accumulate(const VoxelKey& key, const float* mean, uint32_t count);
+  // Writes an entry as is. count must be >= 1.
   void set(const VoxelKey& key, const float* embedding, uint32_t count);
+  // Bulk insert (map loading): n new keys, counts >= 1, n x dim values in this layer's precision.
+  // Throws Error on a zero count or a key that is already present.
+  void insert_raw(std::span<const VoxelKey> keys, std::span<const uint32_t> counts, const std::byte* embeddings);
   bool erase(const VoxelKey& key);
 
-  std::optional<Slot> find(const VoxelKey& key) const;
+  std::optional<Handle> find(const VoxelKey& key) const;
   std::size_t size() const { return index_.size(); }
   int dim() const { return params_.dim; }
   EmbeddingPrecision precision() const { return params_.precision; }
   const SemanticParams& params() const { return params_; }
 
-  // Slot accessors; valid slots come from find() or for_each().
-  uint32_t count_at(Slot s) const { return counts_[s]; }
-  void read(Slot s, float* out) const;  // decodes the embedding to fp32
+  // Entry accessors; valid handles come from find(), for_each() or the change log.
+  const VoxelKey& key_of(Handle h) const { return chunk(h).keys[h % kChunkSlots]; }
+  uint32_t count_of(Handle h) const { return chunk(h).counts[h % kChunkSlots]; }
+  EmbeddingView embedding_of(Handle h) const { return {embedding(h), params_.precision}; }
+  void read(Handle h, float* out) const;  // decodes the embedding to fp32
 
-  template <class F>  // f(const VoxelKey&, Slot)
-  void for_each(F&& f) const {
-    for (const auto& [key, slot] : index_) f(key, slot);
+  // Re-encodes every embedding (fp32 while a submap is written, the storage precision at rest).
+  void convert_to(EmbeddingPrecision precision);
+
+  // A chunk as stored: slot s holds an entry iff counts[s] > 0; its handle is first + s.
+  struct ChunkView {
+    Handle first;
+    std::size_t slots;
+    const VoxelKey* keys;
+    const uint32_t* counts;
+    const std::byte* embeddings;  // slots x dim values in `precision`, row after row
+    EmbeddingPrecision precision;
+  };
+  template <class F>  // f(const ChunkView&)
+  void for_each_chunk(F&& f) const {
+    for (std::size_t c = 0; c < chunks_.size(); ++c) {
+      const Chunk& ch = *chunks_[c];
+      const std::size_t slots = std::min(kChunkSlots, slots_used_ - c * kChunkSlots);
+      f(ChunkView{static_cast<Handle>(c * kChunkSlots), slots, ch.keys.data(), ch.counts.data(), ch.embeddings.get(),
+                  params_.precision});
+    }
   }
+  template <class F>  // f(Handle) for every entry, in storage order
+  void for_each(F&& f) const {
+    for_each_chunk([&](const ChunkView& v) {
+      for (std::size_t s = 0; s < v.slots; ++s)
+        if (v.counts[s]) f(static_cast<Handle>(v.first + s));
+    });
+  }
+
+  // The change log that keeps a reader's references (the global index) in step.
+  struct Changes {
+    std::vector<Handle> added;                         // may already be erased again (count 0)
+    std::vector<std::pair<Handle, VoxelKey>> erased;   // handle and the key it had
+  };
+  void set_change_tracking(bool on);
+  Changes take_changes();  // and makes the erased slots reusable
 
   std::size_t memory_bytes() const;  // everything this layer allocates
   double bytes_per_entry() const { return size() ? static_cast<double>(memory_bytes()) / size() : 0.0; }
 
  private:
-  // Embeddings live in fixed-size chunks, not one growing vector, so the memory per entry stays
-  // at the payload instead of up to twice it after a reallocation.
-  static constexpr std::size_t kChunkSlots = 128;
-  Slot allocate(const VoxelKey& key);
-  std::byte* embedding(Slot s) const {
-    return chunks_[s / kChunkSlots].get() + (s % kChunkSlots) * bytes_per_embedding_;
+  struct Chunk {
+    std::array<VoxelKey, kChunkSlots> keys;
+    std::array<uint32_t, kChunkSlots> counts{};  // 0 marks a free slot
+    std::unique_ptr<std::byte[]> embeddings;
+  };
+  Handle allocate(const VoxelKey& key);
+  const Chunk& chunk(Handle h) const { return *chunks_[h / kChunkSlots]; }
+  Chunk& chunk(Handle h) { return *chunks_[h / kChunkSlots]; }
+  std::byte* embedding(Handle h) const {
+    return chunks_[h / kChunkSlots]->embeddings.get() + (h % kChunkSlots) * bytes_per_embedding_;
   }
+  uint32_t& count_ref(Handle h) { return chunk(h).counts[h % kChunkSlots]; }
 
   SemanticParams params_;
   std::size_t bytes_per_embedding_;
-  absl::flat_hash_map<VoxelKey, Slot, VoxelKeyAbslHash> index_;
-  std::vector<uint32_t> counts_;  // per slot; 0 marks a free slot
-  std::vector<std::unique_ptr<std::byte[]>> chunks_;
-  std::vector<Slot> free_slots_;
+  absl::flat_hash_map<VoxelKey, Handle> index_;
+  std::vector<std::unique_ptr<Chunk>> chunks_;
+  std::size_t slots_used_ = 0;  // slots ever handed out (the used prefix of the chunks)
+  std::vector<Handle> free_slots_;
+  bool tracking_ = false;
+  Changes changes_;
+  std::vector<Handle> pending_free_;  // erased while tracking: reusable after take_changes()
 };
 
 }  // namespace slamvdb

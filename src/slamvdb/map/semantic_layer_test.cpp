@@ -32,7 +32,7 @@ TEST(SemanticLayer, RunningAverageIsTheExactMean) {
     }
     const auto slot = layer.find({1, 2, 3});
     ASSERT_TRUE(slot);
-    EXPECT_EQ(layer.count_at(*slot), static_cast<uint32_t>(n));
+    EXPECT_EQ(layer.count_of(*slot), static_cast<uint32_t>(n));
     std::vector<float> v(8);
     layer.read(*slot, v.data());
     const double tol = precision == EmbeddingPrecision::kFloat32 ? 1e-6 : 2e-3;
@@ -98,7 +98,7 @@ TEST(SemanticLayer, EraseFreesTheSlotForReuse) {
   EXPECT_FALSE(layer.find({1, 1, 1}));
   layer.integrate({3, 3, 3}, x);
   EXPECT_EQ(layer.size(), 2u);
-  EXPECT_EQ(layer.count_at(*layer.find({3, 3, 3})), 1u);  // a reused slot starts from n = 0
+  EXPECT_EQ(layer.count_of(*layer.find({3, 3, 3})), 1u);  // a reused slot starts from n = 0
 }
 
 TEST(SemanticLayer, RejectsBadParameters) {
@@ -123,6 +123,114 @@ TEST(VoxelMap, AVoxelThatBecomesFreeLosesItsSemantics) {
   for (int i = 0; i < 5; ++i) map.integrate_scan({Vec3f(9.5f, 0.5f, 0.5f)}, Pose::Identity());
   EXPECT_FALSE(map.occupancy().is_occupied({5, 0, 0}));
   EXPECT_EQ(map.semantics().size(), 0u);
+}
+
+}  // namespace
+}  // namespace slamvdb
+
+namespace slamvdb {
+namespace {
+
+TEST(SemanticLayer, HandlesAreStableAndLeadBackToTheirKeys) {
+  SemanticLayer layer({4, EmbeddingPrecision::kFloat16});
+  const float x[4] = {1, 2, 3, 4};
+  std::vector<SemanticLayer::Handle> handles;
+  for (int i = 0; i < 300; ++i) {  // more than two chunks
+    layer.integrate({i, -i, 7}, x);
+    handles.push_back(*layer.find({i, -i, 7}));
+  }
+  for (int i = 0; i < 300; i += 2) layer.erase({i, -i, 7});
+  for (int i = 1; i < 300; i += 2) {
+    EXPECT_EQ(*layer.find({i, -i, 7}), handles[i]);  // erasing others never moves an entry
+    EXPECT_EQ(layer.key_of(handles[i]), VoxelKey(i, -i, 7));
+  }
+  std::size_t seen = 0, chunks = 0;
+  layer.for_each_chunk([&](const SemanticLayer::ChunkView& v) {
+    ++chunks;
+    for (std::size_t s = 0; s < v.slots; ++s) {
+      if (!v.counts[s]) continue;
+      ++seen;
+      EXPECT_EQ(v.keys[s], layer.key_of(v.first + s));
+      EXPECT_EQ(v.embeddings + s * 4 * 2, layer.embedding_of(v.first + s).data);  // contiguous rows
+    }
+  });
+  EXPECT_EQ(seen, 150u);
+  EXPECT_EQ(chunks, 3u);
+}
+
+TEST(SemanticLayer, ChangeLogHoldsErasedSlotsUntilTaken) {
+  SemanticLayer layer({2, EmbeddingPrecision::kFloat32});
+  layer.set_change_tracking(true);
+  const float x[2] = {1, 1};
+  layer.integrate({1, 0, 0}, x);
+  layer.integrate({2, 0, 0}, x);
+  const auto h1 = *layer.find({1, 0, 0});
+  layer.erase({1, 0, 0});
+  layer.integrate({3, 0, 0}, x);  // must not reuse h1: a reader may still hold it
+  EXPECT_NE(*layer.find({3, 0, 0}), h1);
+  SemanticLayer::Changes c = layer.take_changes();
+  EXPECT_EQ(c.added.size(), 3u);
+  ASSERT_EQ(c.erased.size(), 1u);
+  EXPECT_EQ(c.erased[0].first, h1);
+  EXPECT_EQ(c.erased[0].second, VoxelKey(1, 0, 0));
+  layer.integrate({4, 0, 0}, x);  // now the slot may be reused
+  EXPECT_EQ(*layer.find({4, 0, 0}), h1);
+  EXPECT_TRUE(layer.take_changes().erased.empty());
+}
+
+TEST(SemanticLayer, AccumulateIsTheCountWeightedMean) {
+  for (const auto precision : {EmbeddingPrecision::kFloat32, EmbeddingPrecision::kFloat16}) {
+    SemanticLayer layer({2, precision});
+    const float a[2] = {1.0f, 0.0f}, b[2] = {0.0f, 1.0f};
+    layer.set({0, 0, 0}, a, 3);
+    layer.accumulate({0, 0, 0}, b, 1);  // (3 a + 1 b) / 4
+    layer.accumulate({5, 0, 0}, b, 9);  // a new entry becomes the mean it is given
+    float v[2];
+    layer.read(*layer.find({0, 0, 0}), v);
+    EXPECT_NEAR(v[0], 0.75f, 1e-3f);
+    EXPECT_NEAR(v[1], 0.25f, 1e-3f);
+    EXPECT_EQ(layer.count_of(*layer.find({0, 0, 0})), 4u);
+    EXPECT_EQ(layer.count_of(*layer.find({5, 0, 0})), 9u);
+    layer.set({1, 0, 0}, a, UINT32_MAX - 1);
+    layer.accumulate({1, 0, 0}, b, 10);  // saturates instead of wrapping
+    EXPECT_EQ(layer.count_of(*layer.find({1, 0, 0})), UINT32_MAX);
+  }
+}
+
+TEST(SemanticLayer, ConvertingPrecisionKeepsHandlesAndValues) {
+  SemanticLayer layer({8, EmbeddingPrecision::kFloat32});
+  std::mt19937 rng(3);
+  std::vector<std::vector<float>> values;
+  for (int i = 0; i < 200; ++i) {
+    values.push_back(random_unit(rng, 8));
+    layer.set({i, 0, 0}, values.back().data(), 1 + i);
+  }
+  const auto h = *layer.find({17, 0, 0});
+  layer.convert_to(EmbeddingPrecision::kFloat16);
+  EXPECT_EQ(layer.precision(), EmbeddingPrecision::kFloat16);
+  EXPECT_EQ(*layer.find({17, 0, 0}), h);
+  float v[8];
+  for (int i = 0; i < 200; ++i) {
+    layer.read(*layer.find({i, 0, 0}), v);
+    for (int c = 0; c < 8; ++c) EXPECT_NEAR(v[c], values[i][c], 1e-3f);
+    EXPECT_EQ(layer.count_of(*layer.find({i, 0, 0})), static_cast<uint32_t>(1 + i));
+  }
+}
+
+TEST(SemanticLayer, BulkInsertRefusesZeroCountsAndDuplicates) {
+  SemanticLayer layer({2, EmbeddingPrecision::kFloat32});
+  const std::vector<VoxelKey> keys = {{1, 2, 3}, {4, 5, 6}};
+  const std::vector<uint32_t> counts = {2, 5};
+  const float data[4] = {1, 2, 3, 4};
+  layer.insert_raw(keys, counts, reinterpret_cast<const std::byte*>(data));
+  float v[2];
+  layer.read(*layer.find({4, 5, 6}), v);
+  EXPECT_EQ(v[0], 3.0f);
+  EXPECT_EQ(layer.count_of(*layer.find({4, 5, 6})), 5u);
+  EXPECT_THROW(layer.insert_raw(keys, counts, reinterpret_cast<const std::byte*>(data)), Error);  // duplicates
+  const std::vector<VoxelKey> fresh = {{9, 9, 9}};
+  const std::vector<uint32_t> zero = {0};
+  EXPECT_THROW(layer.insert_raw(fresh, zero, reinterpret_cast<const std::byte*>(data)), Error);
 }
 
 }  // namespace

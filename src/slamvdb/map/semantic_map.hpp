@@ -1,10 +1,30 @@
 #pragma once
-// The whole map: free-floating submaps, each a VoxelMap in its own frame, placed in the world by
-// a pose that loop closure may later correct, plus what is needed to interpret the embeddings.
+// The whole map (paper section 6.2.3): free-floating submaps and the global lookup index through
+// which every retrieval reads them.
+//
+// Ownership and threads. The map owns its submaps: one active submap that mapping writes (scans
+// and fusion, from one writer thread) and finished submaps that change only by a pose correction
+// or a merge. Any number of reader threads may read the index and finished submaps while the
+// active one is written: finished submaps and the index are guarded by the map's lock (shared for
+// readers), the active submap's voxels by its own lock, which the writer holds only while it
+// integrates a scan or fuses an image. Lock order: map, then active submap.
+//
+// Precision. The active submap accumulates embeddings in fp32, because Eq. 6.1's update
+// (x - v) / (n + 1) falls below half an fp16 ulp after about a thousand views and the mean would
+// stop moving; a finished submap is stored in params.semantic.precision (fp16 by default).
+#include <functional>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <shared_mutex>
+#include <span>
 #include <string>
 #include <vector>
 
-#include "slamvdb/map/voxel_map.hpp"
+#include "slamvdb/map/global_index.hpp"
+#include "slamvdb/map/submap.hpp"
+#include "slamvdb/map/submap_merge.hpp"
 
 namespace slamvdb {
 
@@ -14,39 +34,86 @@ struct MapInfo {
   std::string source;               // what the map was built from (dataset path, simulated or not)
 };
 
-struct Submap {
-  int id = 0;
-  Pose T_world_submap = Pose::Identity();
-  VoxelMap map;
-
-  Submap(int id_, const Pose& T, const MapParams& params) : id(id_), T_world_submap(T), map(params) {}
+struct MergeOptions {
+  double min_overlap = 0.3;  // occupied_overlap() below this refuses the merge
 };
 
-struct SemanticMap {
-  MapParams params;
-  MapInfo info;
-  std::vector<Submap> submaps;
+class SemanticMap {
+ public:
+  explicit SemanticMap(const MapParams& params = {}, MapInfo info = {});
+  SemanticMap(const SemanticMap&) = delete;
+  SemanticMap& operator=(const SemanticMap&) = delete;
+  SemanticMap(SemanticMap&& other) noexcept;  // `other` must not be in use by another thread
 
-  std::size_t num_known_voxels() const {
-    std::size_t n = 0;
-    for (const auto& s : submaps) n += s.map.occupancy().num_known_voxels();
-    return n;
-  }
-  std::size_t num_occupied_voxels() const {
-    std::size_t n = 0;
-    for (const auto& s : submaps) n += s.map.occupancy().num_occupied_voxels();
-    return n;
-  }
-  std::size_t num_semantic_voxels() const {
-    std::size_t n = 0;
-    for (const auto& s : submaps) n += s.map.semantics().size();
-    return n;
-  }
-  std::size_t memory_bytes() const {
-    std::size_t n = 0;
-    for (const auto& s : submaps) n += s.map.occupancy().memory_bytes() + s.map.semantics().memory_bytes();
-    return n;
-  }
+  const MapParams& params() const { return params_; }
+  const MapInfo& info() const { return info_; }
+  void set_info(MapInfo info) { info_ = std::move(info); }
+
+  // ---- mapping (one writer thread) ----
+  // Integrates a scan into the active submap, first starting a new submap at T_world_sensor when
+  // there is none or the path since the active one started exceeds params.submap_length.
+  ScanIntegrationStats integrate_scan(double stamp, const std::vector<Vec3f>& points_sensor, const Pose& T_world_sensor);
+  // Runs f on the active submap's voxels (e.g. to fuse a feature map) under its write lock, with
+  // the finished submaps (read-only, e.g. as occluders) held still meanwhile; then brings the
+  // index in step. f must not call back into the map. Returns false (f not called) when no submap
+  // has been started yet.
+  using ActiveUpdate = std::function<void(VoxelMap& voxels, const Pose& T_world_submap,
+                                          std::span<const PlacedVoxelMap> finished)>;
+  bool update_active(double stamp, const ActiveUpdate& f);
+  // Starts a new active submap anchored at T_world_submap (finishing the current one).
+  int start_submap(const Pose& T_world_submap);
+  // Stores the active submap in its storage precision; it then changes only by pose or merge.
+  void finish_active_submap();
+  std::optional<int> active_submap_id() const;
+
+  // ---- corrections (any thread) ----
+  // Sets corrected anchor poses; every index read reflects them at once. Throws Error for an
+  // unknown id or a pose that is not a finite rigid transform (nothing is changed then).
+  void set_submap_poses(const std::map<int, Pose>& T_world_submap);
+  // Merges `source` into `target` when both are finished and overlap by at least
+  // options.min_overlap; the source then no longer exists. A refused merge changes nothing.
+  MergeReport merge_submaps(int target, int source, const MergeOptions& options = {});
+
+  // ---- building from parts (map loading) ----
+  // Adds a finished submap; throws Error if its id exists or its parameters differ from the map's.
+  void add_finished_submap(SubmapInfo info, VoxelMap voxels);
+
+  // ---- reading (any thread) ----
+  std::vector<SubmapInfo> submaps() const;   // by id
+  std::optional<SubmapInfo> submap_info(int id) const;
+  // f(const Submap&) under the read lock; throws Error for an unknown id.
+  void read_submap(int id, const std::function<void(const Submap&)>& f) const;
+  // f(const GlobalIndex&) under the read locks (the index and the submaps it refers to).
+  void read_index(const std::function<void(const GlobalIndex&)>& f) const;
+  // The occupancy of every submap combined on the index grid (submap_merge.hpp), sorted by cell.
+  std::vector<WorldOccupancyCell> world_occupancy() const;
+
+  std::size_t num_submaps() const;
+  std::size_t num_known_voxels() const;     // summed over submaps (a place in two submaps counts twice)
+  std::size_t num_occupied_voxels() const;  // likewise
+  std::size_t num_semantic_voxels() const;  // summed semantic entries of all submaps
+  std::size_t num_index_cells() const;      // non-empty cells of the global index
+  std::size_t memory_bytes() const;         // voxels of every submap plus the index
+
+ private:
+  using ReadLock = std::shared_lock<FairSharedMutex>;
+  using WriteLock = std::unique_lock<FairSharedMutex>;
+  struct ReadGuard;  // the map's read lock, then the active submap's
+  uint32_t slot_of(int id) const;  // throws Error for an unknown id
+  Submap* active() const { return active_slot_ ? slots_[*active_slot_].get() : nullptr; }
+  int start_submap_locked(const Pose& T_world_submap);
+  void finish_active_locked();
+  void sync_active_locked();  // applies the active layer's change log to the index
+
+  MapParams params_;
+  MapInfo info_;
+  mutable FairSharedMutex mutex_;                   // slots_, ids_, index_, poses, active_slot_
+  std::vector<std::unique_ptr<Submap>> slots_;      // a merged-away submap leaves an empty slot
+  std::map<int, uint32_t> ids_;                     // id -> slot
+  std::optional<uint32_t> active_slot_;
+  GlobalIndex index_;
+  int next_id_ = 0;
+  std::optional<Vec3d> last_scan_position_;         // for the path length of the active submap
 };
 
 }  // namespace slamvdb

@@ -1,6 +1,6 @@
 #pragma once
-// The vector-valued voxel map: occupancy from LiDAR plus the semantic layer from images. It
-// knows nothing of files, networks or sensors' formats.
+// The vector-valued voxel map of one submap, in the submap's frame: occupancy from LiDAR plus the
+// semantic layer from images. It knows nothing of files, networks or sensors' formats.
 #include "slamvdb/map/occupancy_grid.hpp"
 #include "slamvdb/map/semantic_layer.hpp"
 
@@ -9,14 +9,23 @@ namespace slamvdb {
 struct MapParams {
   OccupancyParams occupancy;
   SemanticParams semantic;
+  // A new submap starts when the path driven since the active one started exceeds this (metres);
+  // 0: one submap for the whole run. Why 25 m: see README ("Submaps").
+  double submap_length = 25.0;
+  // Cell edge of the global index (metres); 0: the voxel size.
+  double index_cell_size = 0.0;
+  double index_cell() const { return index_cell_size > 0 ? index_cell_size : occupancy.voxel_size; }
+  void validate() const;  // throws Error naming the parameter
 };
 
 class VoxelMap {
  public:
+  // `precision` overrides params.semantic.precision (the active submap accumulates in fp32).
   explicit VoxelMap(const MapParams& params = {});
+  VoxelMap(const MapParams& params, EmbeddingPrecision precision);
 
   // Occupancy update; a voxel that turns free loses its semantic entry (it no longer holds a surface).
-  ScanIntegrationStats integrate_scan(const std::vector<Vec3f>& points_sensor, const Pose& T_map_sensor);
+  ScanIntegrationStats integrate_scan(const std::vector<Vec3f>& points_sensor, const Pose& T_submap_sensor);
 
   const MapParams& params() const { return params_; }
   double voxel_size() const { return params_.occupancy.voxel_size; }

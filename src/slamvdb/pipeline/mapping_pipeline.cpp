@@ -15,25 +15,26 @@ namespace {
 using Clock = std::chrono::steady_clock;
 double seconds_since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
 
-void add(FusionStats& a, const FusionStats& b) {
-  a.candidates += b.candidates, a.fused_voxels += b.fused_voxels, a.occluded += b.occluded;
-  a.pixels_used += b.pixels_used, a.pixels_total += b.pixels_total;
-}
-
 }  // namespace
 
 std::string PipelineReport::summary() const {
   std::string s = fmt::format(
       "scans: {} integrated of {} ({} unreadable, {} outside the pose range)\n"
-      "points: {} ({} dropped: {} NaN/Inf, {} no return, {} too close; {} beyond max range, cleared only)\n"
-      "images: {} fused of {} ({} failed, {} outside the pose range, {} dropped on a full queue)\n"
-      "fusion: {} voxel updates, {} occluded candidates, {:.1f}% of pixels on a voxel\n"
+      "points: {} ({} dropped: {} NaN/Inf, {} no return, {} too close, {} outside the map extent; {} beyond max "
+      "range, cleared only)\n"
+      "images: {} fused of {} ({} failed, {} outside the pose range, {} before the first scan, {} dropped on a full "
+      "queue)\n"
+      "fusion: {} voxel updates, {} occluded candidates, {:.1f}% of pixels on a voxel; skipped feature pixels: {} "
+      "non-finite, {} all-zero; {} frames refused as mostly invalid\n"
+      "submaps: {}\n"
       "time: {:.1f} s total, {:.1f} s scans, {:.1f} s fusion, {:.1f} s feature extraction (worker)",
       scans_integrated, scans_total, scans_failed, scans_without_pose, points.points, points.dropped(),
-      points.dropped_nonfinite, points.dropped_no_return, points.dropped_too_close, points.beyond_max_range,
-      images_fused, images_total, images_failed, images_outside_pose_range, inference.dropped_queue_full,
+      points.dropped_nonfinite, points.dropped_no_return, points.dropped_too_close, points.dropped_out_of_extent,
+      points.beyond_max_range, images_fused, images_total, images_failed, images_outside_pose_range,
+      images_before_first_scan, inference.dropped_queue_full,
       fusion.fused_voxels, fusion.occluded,
-      fusion.pixels_total ? 100.0 * fusion.pixels_used / fusion.pixels_total : 0.0, seconds_total, seconds_scans,
+      fusion.pixels_total ? 100.0 * fusion.pixels_used / fusion.pixels_total : 0.0, fusion.pixels_nonfinite,
+      fusion.pixels_zero, fusion.frames_refused_invalid, submaps, seconds_total, seconds_scans,
       seconds_fusion, inference.busy_seconds);
   for (std::size_t i = 0; i < problems.size() && i < 20; ++i) s += "\n  skipped: " + problems[i];
   if (problems.size() > 20) s += fmt::format("\n  ... and {} more", problems.size() - 20);
@@ -45,12 +46,7 @@ SemanticMap build_map(const Sequence& seq, FeatureSource* features, const Pipeli
   const auto t_start = Clock::now();
   if (seq.poses.empty())
     throw Error(fmt::format("sequence {} has no poses (poses.txt); mapping needs a pose for every scan", seq.root.string()));
-  SemanticMap result{options.map, {}, {}};
-  result.info.model_id = features ? features->model_id() : "";
-  result.info.source = seq.root.string();
-  result.submaps.emplace_back(0, Pose::Identity(), options.map);
-  Submap& submap = result.submaps.front();
-  const Pose T_submap_world = submap.T_world_submap.inverse();
+  SemanticMap result(options.map, MapInfo{features ? features->model_id() : "", "rellis3d", seq.root.string()});
   ProjectiveFusion fusion(options.fusion);
 
   const std::size_t num_scans =
@@ -80,8 +76,25 @@ SemanticMap build_map(const Sequence& seq, FeatureSource* features, const Pipeli
                               "(set --dim to match the encoder)", name, r.features.dim, dim));
     const auto t0 = Clock::now();
     const CameraModel camera = seq.camera.scaled(r.features.width, r.features.height);
-    add(report.fusion, fusion.fuse(submap.map, r.features, camera, T_submap_world * r.job.T_world_camera));
+    FusionStats stats;
+    const bool fused = result.update_active(
+        rec.stamp, [&](VoxelMap& submap, const Pose& T_world_submap, std::span<const PlacedVoxelMap> finished) {
+          const auto occluders = options.fusion.occlusion_from_other_submaps ? finished : std::span<const PlacedVoxelMap>{};
+          stats = fusion.fuse(submap, r.features, camera, T_world_submap.inverse() * r.job.T_world_camera, occluders,
+                              T_world_submap);
+        });
     report.seconds_fusion += seconds_since(t0);
+    if (!fused) {  // before the first scan there is no voxel to fuse into
+      ++report.images_before_first_scan;
+      return;
+    }
+    report.fusion += stats;
+    if (stats.frames_refused_invalid) {
+      ++report.images_failed;
+      report.problems.push_back(fmt::format("image {}: refused, {} of its pixels on voxels have non-finite or zero "
+                                            "features", name, stats.pixels_nonfinite + stats.pixels_zero));
+      return;
+    }
     ++report.images_fused;
   };
 
@@ -129,7 +142,7 @@ SemanticMap build_map(const Sequence& seq, FeatureSource* features, const Pipeli
         try {
           const LidarScan scan = read_scan(rec);
           const auto t0 = Clock::now();
-          report.points += submap.map.integrate_scan(scan.points, T_submap_world * *pose);
+          report.points += result.integrate_scan(rec.stamp, scan.points, *pose);
           report.seconds_scans += seconds_since(t0);
           ++report.scans_integrated;
         } catch (const Error& e) {
@@ -148,6 +161,8 @@ SemanticMap build_map(const Sequence& seq, FeatureSource* features, const Pipeli
     for (FeatureResult& r : worker->wait_all()) fuse(r);
     report.inference = worker->stats();
   }
+  result.finish_active_submap();
+  report.submaps = result.num_submaps();
   report.seconds_total = seconds_since(t_start);
   return result;
 }

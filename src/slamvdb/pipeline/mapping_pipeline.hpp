@@ -23,6 +23,8 @@ struct PipelineOptions {
 struct PipelineReport {
   std::size_t scans_total = 0, scans_integrated = 0, scans_failed = 0, scans_without_pose = 0;
   std::size_t images_total = 0, images_fused = 0, images_failed = 0, images_outside_pose_range = 0;
+  std::size_t images_before_first_scan = 0;
+  std::size_t submaps = 0;
   ScanIntegrationStats points;
   InferenceStats inference;
   FusionStats fusion;  // summed over images

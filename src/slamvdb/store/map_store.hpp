@@ -1,16 +1,18 @@
 #pragma once
-// A SemanticMap is stored as ONE SQLite file (*.svdb): parameters and model info, submap poses,
-// occupancy blocks (512 log-odds each) and semantic entries in chunks, every row checked by
-// CRC32 on load. Saving is atomic: a crash mid-save leaves the previous file intact.
+// A SemanticMap is stored as ONE SQLite file (*.svdb): parameters and model info, the submaps
+// (anchor pose, time range, path length), their occupancy blocks and their semantic entries, every
+// row checked by CRC32 on load, every value checked for meaning (finite, rigid poses, keys inside
+// the representable extent, no duplicates, rows of existing submaps). Saving is atomic.
 //
-// Schema (format version 1; PRAGMA application_id = kMapApplicationId, user_version = version):
-//   meta(key TEXT PRIMARY KEY, value TEXT, crc)            parameters, info, totals
-//   submaps(id UNIQUE, pose BLOB 16 doubles column-major, blocks, known_voxels,
-//           occupied_voxels, semantic_voxels, crc)          in SemanticMap::submaps order
-//   occupancy(submap, bx, by, bz, log_odds BLOB, crc)    one row per 8^3 block: 512 floats, zlib
-//                                                         (mostly unknown or clamped: ~16x smaller)
-//   semantics(submap, keys BLOB n x 3 int32, counts BLOB n uint32,
+// Schema, format version 2 (PRAGMA application_id = kMapApplicationId, user_version = version):
+//   meta(key TEXT PRIMARY KEY, value TEXT, crc)                 parameters, info, totals
+//   submaps(id PRIMARY KEY, pose BLOB 16 doubles column-major, time_begin, time_end (NULL when
+//           empty), path_length, blocks, known_voxels, occupied_voxels, semantic_voxels, crc)
+//   occupancy(submap, bx, by, bz, log_odds BLOB, crc)        one row per 8^3 block: 512 floats, zlib
+//   semantics(submap, chunk, keys BLOB n x 3 int32, counts BLOB n uint32,
 //             embeddings BLOB n x dim fp16|fp32, crc)        up to kSemanticChunkEntries per row
+//   indexes on occupancy(submap) and semantics(submap, chunk): submaps are read one by one.
+// Version 1 (one submap, no time range, no chunk column, no indexes) still loads.
 // All numbers in blobs are little-endian; a crc covers its row's integer columns and blobs.
 #include <cstdint>
 #include <filesystem>
@@ -21,13 +23,12 @@
 
 namespace slamvdb {
 
-inline constexpr int kMapFormatVersion = 1;
+inline constexpr int kMapFormatVersion = 2;
 inline constexpr int32_t kMapApplicationId = 0x53564442;  // "SVDB"
 inline constexpr std::size_t kSemanticChunkEntries = 4096;
 
 struct SubmapSummary {
-  int id = 0;
-  Pose T_world_submap = Pose::Identity();
+  SubmapInfo info;
   std::size_t blocks = 0;
   std::size_t known_voxels = 0;
   std::size_t occupied_voxels = 0;
@@ -53,9 +54,10 @@ struct MapFileSummary {
 // fsyncs the directory. Throws Error (naming the path) on failure; `path` is then untouched.
 void save_map(const std::filesystem::path& path, const SemanticMap& map);
 
-// Throws Error naming the path and the reason for a missing, foreign, truncated, corrupt (CRC
-// mismatch) or newer-version file.
+// Throws Error naming the path and the first problem for a missing, foreign, truncated, corrupt
+// (CRC mismatch), impossible (non-finite, not rigid, duplicate, out of range) or newer-version file.
 SemanticMap load_map(const std::filesystem::path& path);
+// The metadata only (checked as far as it goes); load_map checks everything.
 MapFileSummary read_map_summary(const std::filesystem::path& path);
 
 }  // namespace slamvdb

@@ -15,6 +15,7 @@
 #include <cmath>
 #include <cstring>
 #include <fstream>
+#include <functional>
 #include <limits>
 #include <random>
 #include <thread>
@@ -48,27 +49,28 @@ Pose make_pose(double yaw, const Vec3d& t) {
 
 // Two submaps with negative keys, boundary and odd float values (-0, subnormal, NaN with a payload,
 // an all-unknown block) and embeddings with subnormal, signed-zero and extreme fp16 values.
-SemanticMap make_map(EmbeddingPrecision precision, int dim, int seed) {
-  SemanticMap map;
-  map.params.occupancy.voxel_size = 0.2;
-  map.params.occupancy.clamp_max = 3.25f;
-  map.params.semantic = {dim, precision};
-  map.info = {"simulated-clip-test", "rellis3d", "SIMULATED unit-test map, seed " + std::to_string(seed)};
-  map.submaps.emplace_back(3, make_pose(0.3, {1.5, -2.25, 0.125}), map.params);
-  map.submaps.emplace_back(-7, make_pose(-2.0, {100.0, 40.0, -3.0}), map.params);
+SemanticMap make_map(EmbeddingPrecision precision, int dim, int seed,
+                     const std::function<void(int id, VoxelMap&)>& edit = {}) {
+  MapParams params;
+  params.occupancy.voxel_size = 0.2;
+  params.occupancy.clamp_max = 3.25f;
+  params.semantic = {dim, precision};
+  SemanticMap map(params, {"simulated-clip-test", "rellis3d", "SIMULATED unit-test map, seed " + std::to_string(seed)});
   std::mt19937 rng(seed);
   std::uniform_real_distribution<float> lo(-2.0f, 3.25f), unit(-1.0f, 1.0f);
   std::uniform_int_distribution<int> coord(-40, 40);
   std::uniform_int_distribution<uint32_t> count(1, 100000);
   std::vector<float> e(dim);
-  for (Submap& s : map.submaps) {
-    OccupancyGrid& grid = s.map.occupancy();
+  for (const auto& [id, pose, t0] : {std::tuple{3, make_pose(0.3, {1.5, -2.25, 0.125}), 10.0},
+                                      std::tuple{-7, make_pose(-2.0, {100.0, 40.0, -3.0}), 20.0}}) {
+    VoxelMap voxels(params);
+    OccupancyGrid& grid = voxels.occupancy();
     for (int i = 0; i < 3000; ++i) grid.set_log_odds({coord(rng), coord(rng), coord(rng)}, lo(rng));
     grid.set_log_odds({-1, -1, -1}, -0.0f);
     grid.set_log_odds({-2, -1, -1}, std::numeric_limits<float>::denorm_min());
     grid.set_log_odds({-3, -1, -1}, std::bit_cast<float>(0x7fc00123u));  // unknown, unusual NaN bits
     grid.set_log_odds({800, 800, 800}, std::numeric_limits<float>::quiet_NaN());  // a block with no known voxel
-    SemanticLayer& layer = s.map.semantics();
+    SemanticLayer& layer = voxels.semantics();
     int n = 0;
     grid.for_each_occupied([&](const VoxelKey& k, float) {
       if (n++ % 2) return;
@@ -78,6 +80,13 @@ SemanticMap make_map(EmbeddingPrecision precision, int dim, int seed) {
     e.assign(dim, 0.0f);
     e[0] = -0.0f, e[1] = 65504.0f, e[2] = 6e-8f, e[3] = -1e-5f;
     layer.set({-1, -1, -1}, e.data(), UINT32_MAX);
+    SubmapInfo info;
+    info.id = id;
+    info.T_world_submap = pose;
+    info.time_range = {t0, t0 + 4.5};
+    info.path_length = 12.5;
+    if (edit) edit(id, voxels);
+    map.add_finished_submap(info, std::move(voxels));
   }
   return map;
 }
@@ -98,39 +107,49 @@ void expect_same_params(const MapParams& a, const MapParams& b) {
 
 // Bit-level comparison: every log-odds (NaN payloads included) and every embedding value.
 void expect_identical(const SemanticMap& a, const SemanticMap& b) {
-  expect_same_params(a.params, b.params);
-  EXPECT_EQ(a.info.model_id, b.info.model_id);
-  EXPECT_EQ(a.info.ontology, b.info.ontology);
-  EXPECT_EQ(a.info.source, b.info.source);
-  ASSERT_EQ(a.submaps.size(), b.submaps.size());
-  for (std::size_t i = 0; i < a.submaps.size(); ++i) {
-    const Submap &sa = a.submaps[i], &sb = b.submaps[i];
-    EXPECT_EQ(sa.id, sb.id);
-    EXPECT_EQ(sa.T_world_submap.matrix(), sb.T_world_submap.matrix());
-    expect_same_params(sa.map.params(), sb.map.params());
-    const OccupancyGrid &ga = sa.map.occupancy(), &gb = sb.map.occupancy();
-    ASSERT_EQ(ga.num_blocks(), gb.num_blocks());
-    EXPECT_EQ(ga.num_occupied_voxels(), gb.num_occupied_voxels());
-    for (const auto& [bk, block] : ga.blocks()) {
-      const auto it = gb.blocks().find(bk);
-      ASSERT_NE(it, gb.blocks().end()) << bk.transpose();
-      for (int v = 0; v < OccupancyGrid::kBlockVoxels; ++v) {
-        ASSERT_EQ(std::bit_cast<uint32_t>(block->cells[v].log_odds),
-                  std::bit_cast<uint32_t>(it->second->cells[v].log_odds))
-            << "block " << bk.transpose() << " voxel " << v;
-        ASSERT_EQ(block->occupied(v), it->second->occupied(v));
-      }
-    }
-    const SemanticLayer &la = sa.map.semantics(), &lb = sb.map.semantics();
-    ASSERT_EQ(la.size(), lb.size());
-    std::vector<float> ea(la.dim()), eb(la.dim());
-    la.for_each([&](const VoxelKey& k, SemanticLayer::Slot slot) {
-      const auto other = lb.find(k);
-      ASSERT_TRUE(other) << k.transpose();
-      EXPECT_EQ(la.count_at(slot), lb.count_at(*other));
-      la.read(slot, ea.data());
-      lb.read(*other, eb.data());
-      ASSERT_EQ(std::memcmp(ea.data(), eb.data(), ea.size() * sizeof(float)), 0) << k.transpose();
+  expect_same_params(a.params(), b.params());
+  EXPECT_EQ(a.params().submap_length, b.params().submap_length);
+  EXPECT_EQ(a.info().model_id, b.info().model_id);
+  EXPECT_EQ(a.info().ontology, b.info().ontology);
+  EXPECT_EQ(a.info().source, b.info().source);
+  const auto infos_a = a.submaps(), infos_b = b.submaps();
+  ASSERT_EQ(infos_a.size(), infos_b.size());
+  for (std::size_t i = 0; i < infos_a.size(); ++i) {
+    const SubmapInfo &ia = infos_a[i], &ib = infos_b[i];
+    EXPECT_EQ(ia.id, ib.id);
+    EXPECT_EQ(ia.T_world_submap.matrix(), ib.T_world_submap.matrix());
+    EXPECT_EQ(ia.time_range.begin, ib.time_range.begin);
+    EXPECT_EQ(ia.time_range.end, ib.time_range.end);
+    EXPECT_EQ(ia.path_length, ib.path_length);
+    a.read_submap(ia.id, [&](const Submap& sa) {
+      b.read_submap(ib.id, [&](const Submap& sb) {
+        expect_same_params(sa.voxels().params(), sb.voxels().params());
+        const OccupancyGrid &ga = sa.voxels().occupancy(), &gb = sb.voxels().occupancy();
+        ASSERT_EQ(ga.num_blocks(), gb.num_blocks());
+        EXPECT_EQ(ga.num_occupied_voxels(), gb.num_occupied_voxels());
+        for (const auto& [bk, block] : ga.blocks()) {
+          const auto it = gb.blocks().find(bk);
+          ASSERT_NE(it, gb.blocks().end()) << bk.transpose();
+          for (int v = 0; v < kBlockVoxels; ++v) {
+            ASSERT_EQ(std::bit_cast<uint32_t>(block->cells[v].log_odds),
+                      std::bit_cast<uint32_t>(it->second->cells[v].log_odds))
+                << "block " << bk.transpose() << " voxel " << v;
+            ASSERT_EQ(block->occupied(v), it->second->occupied(v));
+          }
+        }
+        const SemanticLayer &la = sa.voxels().semantics(), &lb = sb.voxels().semantics();
+        ASSERT_EQ(la.size(), lb.size());
+        std::vector<float> ea(la.dim()), eb(la.dim());
+        la.for_each([&](SemanticLayer::Handle h) {
+          const VoxelKey& k = la.key_of(h);
+          const auto other = lb.find(k);
+          ASSERT_TRUE(other) << k.transpose();
+          EXPECT_EQ(la.count_of(h), lb.count_of(*other));
+          la.read(h, ea.data());
+          lb.read(*other, eb.data());
+          ASSERT_EQ(std::memcmp(ea.data(), eb.data(), ea.size() * sizeof(float)), 0) << k.transpose();
+        });
+      });
     });
   }
 }
@@ -191,8 +210,8 @@ TEST_F(MapStoreTest, SummaryReadsMetadataAndCounts) {
   save_map(path, map);
   const MapFileSummary s = read_map_summary(path);
   EXPECT_EQ(s.format_version, kMapFormatVersion);
-  expect_same_params(s.params, map.params);
-  EXPECT_EQ(s.info.source, map.info.source);
+  expect_same_params(s.params, map.params());
+  EXPECT_EQ(s.info.source, map.info().source);
   EXPECT_EQ(s.known_voxels, map.num_known_voxels());
   EXPECT_EQ(s.occupied_voxels, map.num_occupied_voxels());
   EXPECT_EQ(s.semantic_voxels, map.num_semantic_voxels());
@@ -200,15 +219,22 @@ TEST_F(MapStoreTest, SummaryReadsMetadataAndCounts) {
   EXPECT_EQ(s.file_bytes, fs::file_size(path));
   EXPECT_EQ(s.semantic_payload_bytes, map.num_semantic_voxels() * (12 + 4 + 32 * 2));
   ASSERT_EQ(s.submaps.size(), 2u);
-  EXPECT_EQ(s.submaps[1].id, -7);
-  EXPECT_EQ(s.submaps[1].T_world_submap.matrix(), map.submaps[1].T_world_submap.matrix());
-  EXPECT_EQ(s.submaps[1].blocks, map.submaps[1].map.occupancy().num_blocks());
-  EXPECT_EQ(s.submaps[1].semantic_voxels, map.submaps[1].map.semantics().size());
+  const SubmapSummary& first = s.submaps[0];  // in id order
+  EXPECT_EQ(first.info.id, -7);
+  EXPECT_EQ(first.info.T_world_submap.matrix(), map.submap_info(-7)->T_world_submap.matrix());
+  EXPECT_EQ(first.info.time_range.begin, 20.0);
+  EXPECT_EQ(first.info.time_range.end, 24.5);
+  EXPECT_EQ(first.info.path_length, 12.5);
+  map.read_submap(-7, [&](const Submap& sm) {
+    EXPECT_EQ(first.blocks, sm.voxels().occupancy().num_blocks());
+    EXPECT_EQ(first.semantic_voxels, sm.voxels().semantics().size());
+  });
 }
 
 TEST_F(MapStoreTest, EmptyMapRoundTrips) {
-  SemanticMap map;
-  map.params.semantic = {8, EmbeddingPrecision::kFloat32};
+  MapParams params;
+  params.semantic = {8, EmbeddingPrecision::kFloat32};
+  const SemanticMap map(params);
   save_map(dir_ / "empty.svdb", map);
   const SemanticMap loaded = load_map(dir_ / "empty.svdb");
   expect_identical(map, loaded);
@@ -226,16 +252,18 @@ TEST_F(MapStoreTest, SavedFilesGetNormalPermissionsOrKeepTheReplacedOnes) {
   EXPECT_EQ(fs::status(path).permissions(), fs::perms::owner_read | fs::perms::owner_write | fs::perms::group_read);
 }
 
-TEST_F(MapStoreTest, RejectsMapsOneFileCannotHold) {
+TEST_F(MapStoreTest, AMapCannotHoldSubmapsOneFileCannotHold) {
   SemanticMap map = make_map(EmbeddingPrecision::kFloat16, 16, 3);
-  map.submaps[1].id = map.submaps[0].id;
-  EXPECT_THROW(save_map(dir_ / "dup.svdb", map), Error);
-  SemanticMap mixed = make_map(EmbeddingPrecision::kFloat16, 16, 3);
-  MapParams other = mixed.params;
+  MapParams same = map.params();
+  SubmapInfo duplicate;
+  duplicate.id = 3;
+  EXPECT_THROW(map.add_finished_submap(duplicate, VoxelMap(same)), Error);
+  MapParams other = map.params();
   other.semantic.dim = 8;
-  mixed.submaps.emplace_back(9, Pose::Identity(), other);
-  EXPECT_THROW(save_map(dir_ / "mixed.svdb", mixed), Error);
-  EXPECT_TRUE(files_in(dir_).empty());  // nothing written, no temp file left
+  SubmapInfo fresh;
+  fresh.id = 9;
+  EXPECT_THROW(map.add_finished_submap(fresh, VoxelMap(other)), Error);
+  EXPECT_EQ(map.num_submaps(), 2u);
 }
 
 TEST_F(MapStoreTest, BadFilesGiveErrorsWithPathAndReason) {
@@ -274,9 +302,9 @@ TEST_F(MapStoreTest, BadFilesGiveErrorsWithPathAndReason) {
 
   const fs::path newer = dir_ / "newer.svdb";
   write_bytes(newer, bytes);
-  set_pragma(newer, "user_version = 2");
+  set_pragma(newer, "user_version = 3");
   msg = load_error(newer);
-  EXPECT_NE(msg.find("map format version 2 is newer than this slamvdb supports (1); upgrade slamvdb"),
+  EXPECT_NE(msg.find("map format version 3 is newer than this slamvdb supports (2); upgrade slamvdb"),
             std::string::npos)
       << msg;
   EXPECT_NE(msg.find(newer.string()), std::string::npos) << msg;
@@ -322,14 +350,9 @@ void expect_crc_error_after_flip(const fs::path& good, const fs::path& bad, cons
 }
 
 TEST_F(MapStoreTest, FlippedBytesInsideBlobsFailTheCrc) {
-  SemanticMap map = make_map(EmbeddingPrecision::kFloat16, 64, 5);
   // Recognisable values: a block of distinct log-odds and one embedding of distinct halves.
-  OccupancyGrid& grid = map.submaps[1].map.occupancy();
   std::array<float, 16> lo_pattern;
-  for (int i = 0; i < 16; ++i) {
-    lo_pattern[i] = 1.0f + 0.0625f * i + 1e-6f;
-    grid.set_log_odds(OccupancyGrid::voxel_key({500, 0, 0}, i), lo_pattern[i]);
-  }
+  for (int i = 0; i < 16; ++i) lo_pattern[i] = 1.0f + 0.0625f * i + 1e-6f;
   std::vector<float> e(64);
   std::string half_pattern;
   for (int i = 0; i < 64; ++i) {
@@ -337,7 +360,11 @@ TEST_F(MapStoreTest, FlippedBytesInsideBlobsFailTheCrc) {
     const uint16_t h = float_to_half(e[i]);
     if (i < 16) half_pattern.append(reinterpret_cast<const char*>(&h), 2);
   }
-  map.submaps[0].map.semantics().set({7, 7, 7}, e.data(), 3);
+  const SemanticMap map = make_map(EmbeddingPrecision::kFloat16, 64, 5, [&](int id, VoxelMap& voxels) {
+    if (id == -7)
+      for (int i = 0; i < 16; ++i) voxels.occupancy().set_log_odds(voxel_of(BlockKey{500, 0, 0}, i), lo_pattern[i]);
+    if (id == 3) voxels.semantics().set({7, 7, 7}, e.data(), 3);
+  });
   const fs::path good = dir_ / "good.svdb";
   save_map(good, map);
   // Occupancy blobs are compressed: find the stored bytes of that block through SQLite.
@@ -355,24 +382,26 @@ TEST_F(MapStoreTest, FlippedBytesInsideBlobsFailTheCrc) {
   }
   expect_crc_error_after_flip(good, dir_ / "bad_occupancy.svdb", block_blob, "occupancy block (500, 0, 0) of submap -7");
   expect_crc_error_after_flip(good, dir_ / "bad_semantics.svdb", half_pattern, "semantic chunk 0 of submap 3");
-  expect_crc_error_after_flip(good, dir_ / "bad_meta.svdb", map.info.source, "meta entry 'source'");
+  expect_crc_error_after_flip(good, dir_ / "bad_meta.svdb", map.info().source, "meta entry 'source'");
 }
 
 // A large map for the kill test: ~40 MB, so the save is still writing when the child is killed.
 SemanticMap make_large_map() {
-  SemanticMap map;
-  map.params.semantic = {512, EmbeddingPrecision::kFloat16};
-  map.submaps.emplace_back(0, Pose::Identity(), map.params);
+  MapParams params;
+  params.semantic = {512, EmbeddingPrecision::kFloat16};
+  SemanticMap map(params);
+  VoxelMap voxels(params);
   std::mt19937 rng(9);
   std::uniform_real_distribution<float> unit(-1.0f, 1.0f);
   std::vector<float> e(512);
   for (int x = 0; x < 200; ++x)
     for (int y = 0; y < 200; ++y) {
       const VoxelKey k(x, y, (x + y) / 16);
-      map.submaps[0].map.occupancy().set_log_odds(k, 1.0f);
+      voxels.occupancy().set_log_odds(k, 1.0f);
       for (float& v : e) v = unit(rng);
-      map.submaps[0].map.semantics().set(k, e.data(), 1);
+      voxels.semantics().set(k, e.data(), 1);
     }
+  map.add_finished_submap({}, std::move(voxels));
   return map;
 }
 
@@ -427,15 +456,15 @@ TEST_F(MapStoreTest, SaveIsAtomicWhenKilledMidWrite) {
 // embeddings clustered around 20 class prototypes.
 TEST_F(MapStoreTest, DISABLED_LargeMapMeasurement) {
   using Clock = std::chrono::steady_clock;
-  SemanticMap map;
-  map.params.semantic = {512, EmbeddingPrecision::kFloat16};
-  map.info = {"simulated-clip-512", "rellis3d", "SIMULATED measurement map"};
-  map.submaps.emplace_back(0, Pose::Identity(), map.params);
-  OccupancyGrid& grid = map.submaps[0].map.occupancy();
-  SemanticLayer& layer = map.submaps[0].map.semantics();
+  MapParams params;
+  params.semantic = {512, EmbeddingPrecision::kFloat16};
+  SemanticMap map(params, {"simulated-clip-512", "rellis3d", "SIMULATED measurement map"});
+  VoxelMap voxels(params);
+  OccupancyGrid& grid = voxels.occupancy();
+  SemanticLayer& layer = voxels.semantics();
   std::mt19937 rng(11);
   // Log-odds as scans leave them: sums of a few hits or misses, clamped.
-  const OccupancyParams& op = map.params.occupancy;
+  const OccupancyParams& op = params.occupancy;
   std::uniform_int_distribution<int> updates(1, 8);
   auto occupied = [&](std::mt19937& r) { return std::min(op.clamp_max, updates(r) * op.log_odds_hit); };
   auto free = [&](std::mt19937& r) { return std::max(op.clamp_min, updates(r) * op.log_odds_miss); };
@@ -456,6 +485,8 @@ TEST_F(MapStoreTest, DISABLED_LargeMapMeasurement) {
         layer.set({x, y, z}, e.data(), 1 + rng() % 200);
       }
     }
+  const std::size_t blocks = grid.num_blocks();
+  map.add_finished_submap({}, std::move(voxels));
   const fs::path path = dir_ / "large.svdb";
   const auto t0 = Clock::now();
   const std::clock_t c0 = std::clock();
@@ -476,7 +507,7 @@ TEST_F(MapStoreTest, DISABLED_LargeMapMeasurement) {
       "save %.0f ms (cpu %.0f ms), load %.0f ms (cpu %.0f ms), summary %.1f ms\n"
       "file %.1f MB (in memory %.1f MB); occupancy payload %.1f MB, semantic payload %.1f MB\n"
       "bytes per semantic voxel: payload %.1f, whole file %.1f, file minus occupancy payload %.1f\n",
-      map.num_known_voxels(), map.num_occupied_voxels(), map.num_semantic_voxels(), grid.num_blocks(), ms(t1 - t0),
+      map.num_known_voxels(), map.num_occupied_voxels(), map.num_semantic_voxels(), blocks, ms(t1 - t0),
       (c1 - c0) * 1e3 / CLOCKS_PER_SEC, ms(t2 - t1), (c2 - c1) * 1e3 / CLOCKS_PER_SEC, ms(t3 - t2), file / 1e6, map.memory_bytes() / 1e6, summary.occupancy_payload_bytes / 1e6,
       summary.semantic_payload_bytes / 1e6, summary.semantic_payload_bytes / semantic, file / semantic,
       (file - summary.occupancy_payload_bytes) / semantic);

@@ -1,0 +1,193 @@
+#include "slamvdb/core/embedding_kernels.hpp"
+
+#include <immintrin.h>
+
+#include <algorithm>
+#include <cmath>
+
+#include "slamvdb/core/half.hpp"
+
+namespace slamvdb::kernels {
+namespace {
+
+#define SLAMVDB_AVX2 __attribute__((target("avx2,fma,f16c")))
+
+// ---- portable versions ----
+void half_to_float_scalar(const uint16_t* in, float* out, std::size_t n) {
+  for (std::size_t i = 0; i < n; ++i) out[i] = slamvdb::half_to_float(in[i]);
+}
+void float_to_half_scalar(const float* in, uint16_t* out, std::size_t n) {
+  for (std::size_t i = 0; i < n; ++i) out[i] = slamvdb::float_to_half(in[i]);
+}
+void running_mean_f16_scalar(uint16_t* v, const float* x, float w, std::size_t n) {
+  for (std::size_t i = 0; i < n; ++i) {
+    const float old = slamvdb::half_to_float(v[i]);
+    v[i] = slamvdb::float_to_half(old + (x[i] - old) * w);
+  }
+}
+float dot_f16_scalar(const uint16_t* v, const float* q, std::size_t n) {
+  float s = 0;
+  for (std::size_t i = 0; i < n; ++i) s += slamvdb::half_to_float(v[i]) * q[i];
+  return s;
+}
+float squared_norm_f16_scalar(const uint16_t* v, std::size_t n) {
+  float s = 0;
+  for (std::size_t i = 0; i < n; ++i) s += slamvdb::half_to_float(v[i]) * slamvdb::half_to_float(v[i]);
+  return s;
+}
+void add_scaled_f16_scalar(float* acc, const uint16_t* v, float w, std::size_t n) {
+  for (std::size_t i = 0; i < n; ++i) acc[i] += w * slamvdb::half_to_float(v[i]);
+}
+
+// ---- AVX2 + F16C + FMA ----
+SLAMVDB_AVX2 float hsum(__m256 v) {
+  const __m128 s = _mm_add_ps(_mm256_castps256_ps128(v), _mm256_extractf128_ps(v, 1));
+  const __m128 t = _mm_add_ps(s, _mm_movehl_ps(s, s));
+  return _mm_cvtss_f32(_mm_add_ss(t, _mm_shuffle_ps(t, t, 1)));
+}
+SLAMVDB_AVX2 __m256 load_half8(const uint16_t* p) {
+  return _mm256_cvtph_ps(_mm_loadu_si128(reinterpret_cast<const __m128i*>(p)));
+}
+SLAMVDB_AVX2 void half_to_float_avx2(const uint16_t* in, float* out, std::size_t n) {
+  std::size_t i = 0;
+  for (; i + 8 <= n; i += 8) _mm256_storeu_ps(out + i, load_half8(in + i));
+  for (; i < n; ++i) out[i] = _cvtsh_ss(in[i]);
+}
+SLAMVDB_AVX2 void float_to_half_avx2(const float* in, uint16_t* out, std::size_t n) {
+  std::size_t i = 0;
+  for (; i + 8 <= n; i += 8)
+    _mm_storeu_si128(reinterpret_cast<__m128i*>(out + i),
+                     _mm256_cvtps_ph(_mm256_loadu_ps(in + i), _MM_FROUND_TO_NEAREST_INT));
+  for (; i < n; ++i) out[i] = static_cast<uint16_t>(_cvtss_sh(in[i], _MM_FROUND_TO_NEAREST_INT));
+}
+SLAMVDB_AVX2 void running_mean_f16_avx2(uint16_t* v, const float* x, float w, std::size_t n) {
+  const __m256 wv = _mm256_set1_ps(w);
+  std::size_t i = 0;
+  for (; i + 8 <= n; i += 8) {
+    const __m256 old = load_half8(v + i);
+    const __m256 upd = _mm256_fmadd_ps(_mm256_sub_ps(_mm256_loadu_ps(x + i), old), wv, old);
+    _mm_storeu_si128(reinterpret_cast<__m128i*>(v + i), _mm256_cvtps_ph(upd, _MM_FROUND_TO_NEAREST_INT));
+  }
+  running_mean_f16_scalar(v + i, x + i, w, n - i);
+}
+SLAMVDB_AVX2 void running_mean_f32_avx2(float* v, const float* x, float w, std::size_t n) {
+  const __m256 wv = _mm256_set1_ps(w);
+  std::size_t i = 0;
+  for (; i + 8 <= n; i += 8) {
+    const __m256 old = _mm256_loadu_ps(v + i);
+    _mm256_storeu_ps(v + i, _mm256_fmadd_ps(_mm256_sub_ps(_mm256_loadu_ps(x + i), old), wv, old));
+  }
+  for (; i < n; ++i) v[i] += (x[i] - v[i]) * w;
+}
+SLAMVDB_AVX2 float dot_f16_avx2(const uint16_t* v, const float* q, std::size_t n) {
+  __m256 a0 = _mm256_setzero_ps(), a1 = _mm256_setzero_ps();
+  std::size_t i = 0;
+  for (; i + 16 <= n; i += 16) {
+    a0 = _mm256_fmadd_ps(load_half8(v + i), _mm256_loadu_ps(q + i), a0);
+    a1 = _mm256_fmadd_ps(load_half8(v + i + 8), _mm256_loadu_ps(q + i + 8), a1);
+  }
+  float s = hsum(_mm256_add_ps(a0, a1));
+  for (; i < n; ++i) s += _cvtsh_ss(v[i]) * q[i];
+  return s;
+}
+SLAMVDB_AVX2 float dot_f32_avx2(const float* v, const float* q, std::size_t n) {
+  __m256 a0 = _mm256_setzero_ps(), a1 = _mm256_setzero_ps();
+  std::size_t i = 0;
+  for (; i + 16 <= n; i += 16) {
+    a0 = _mm256_fmadd_ps(_mm256_loadu_ps(v + i), _mm256_loadu_ps(q + i), a0);
+    a1 = _mm256_fmadd_ps(_mm256_loadu_ps(v + i + 8), _mm256_loadu_ps(q + i + 8), a1);
+  }
+  float s = hsum(_mm256_add_ps(a0, a1));
+  for (; i < n; ++i) s += v[i] * q[i];
+  return s;
+}
+SLAMVDB_AVX2 float squared_norm_f16_avx2(const uint16_t* v, std::size_t n) {
+  __m256 a = _mm256_setzero_ps();
+  std::size_t i = 0;
+  for (; i + 8 <= n; i += 8) {
+    const __m256 x = load_half8(v + i);
+    a = _mm256_fmadd_ps(x, x, a);
+  }
+  float s = hsum(a);
+  for (; i < n; ++i) s += _cvtsh_ss(v[i]) * _cvtsh_ss(v[i]);
+  return s;
+}
+SLAMVDB_AVX2 void add_scaled_f16_avx2(float* acc, const uint16_t* v, float w, std::size_t n) {
+  const __m256 wv = _mm256_set1_ps(w);
+  std::size_t i = 0;
+  for (; i + 8 <= n; i += 8)
+    _mm256_storeu_ps(acc + i, _mm256_fmadd_ps(load_half8(v + i), wv, _mm256_loadu_ps(acc + i)));
+  for (; i < n; ++i) acc[i] += w * _cvtsh_ss(v[i]);
+}
+
+struct Dispatch {
+  bool avx2;
+  void (*half_to_float)(const uint16_t*, float*, std::size_t);
+  void (*float_to_half)(const float*, uint16_t*, std::size_t);
+  void (*running_mean_f16)(uint16_t*, const float*, float, std::size_t);
+  float (*dot_f16)(const uint16_t*, const float*, std::size_t);
+  float (*squared_norm_f16)(const uint16_t*, std::size_t);
+  void (*add_scaled_f16)(float*, const uint16_t*, float, std::size_t);
+};
+
+Dispatch choose() {
+  __builtin_cpu_init();
+  if (__builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma") && __builtin_cpu_supports("f16c"))
+    return {true, half_to_float_avx2, float_to_half_avx2, running_mean_f16_avx2, dot_f16_avx2, squared_norm_f16_avx2,
+            add_scaled_f16_avx2};
+  return {false, half_to_float_scalar, float_to_half_scalar, running_mean_f16_scalar, dot_f16_scalar,
+          squared_norm_f16_scalar, add_scaled_f16_scalar};
+}
+
+const Dispatch& dispatch() {
+  static const Dispatch d = choose();
+  return d;
+}
+
+}  // namespace
+
+bool has_avx2_f16c() { return dispatch().avx2; }
+void half_to_float(const uint16_t* in, float* out, std::size_t n) { dispatch().half_to_float(in, out, n); }
+void float_to_half(const float* in, uint16_t* out, std::size_t n) { dispatch().float_to_half(in, out, n); }
+
+void decode(EmbeddingView v, float* out, std::size_t n) {
+  if (v.precision == EmbeddingPrecision::kFloat16) half_to_float(static_cast<const uint16_t*>(v.data), out, n);
+  else std::copy_n(static_cast<const float*>(v.data), n, out);
+}
+
+void running_mean(float* v, const float* x, float w, std::size_t n) {
+  if (dispatch().avx2) return running_mean_f32_avx2(v, x, w, n);
+  for (std::size_t i = 0; i < n; ++i) v[i] += (x[i] - v[i]) * w;
+}
+void running_mean(uint16_t* v, const float* x, float w, std::size_t n) { dispatch().running_mean_f16(v, x, w, n); }
+
+void add_scaled(float* acc, EmbeddingView v, float w, std::size_t n) {
+  if (v.precision == EmbeddingPrecision::kFloat16)
+    return dispatch().add_scaled_f16(acc, static_cast<const uint16_t*>(v.data), w, n);
+  const auto* x = static_cast<const float*>(v.data);
+  for (std::size_t i = 0; i < n; ++i) acc[i] += w * x[i];
+}
+
+float dot(EmbeddingView v, const float* q, std::size_t n) {
+  if (v.precision == EmbeddingPrecision::kFloat16) return dispatch().dot_f16(static_cast<const uint16_t*>(v.data), q, n);
+  const auto* x = static_cast<const float*>(v.data);
+  if (dispatch().avx2) return dot_f32_avx2(x, q, n);
+  float s = 0;
+  for (std::size_t i = 0; i < n; ++i) s += x[i] * q[i];
+  return s;
+}
+
+float squared_norm(EmbeddingView v, std::size_t n) {
+  if (v.precision == EmbeddingPrecision::kFloat16)
+    return dispatch().squared_norm_f16(static_cast<const uint16_t*>(v.data), n);
+  return dot(v, static_cast<const float*>(v.data), n);
+}
+
+bool all_finite(const float* x, std::size_t n) {
+  // Summing x * 0 keeps NaN and turns Inf into NaN, in one branch-free pass.
+  float s = 0;
+  for (std::size_t i = 0; i < n; ++i) s += x[i] * 0.0f;
+  return s == 0.0f;
+}
+
+}  // namespace slamvdb::kernels

@@ -1,0 +1,47 @@
+#pragma once
+// The few loops over embedding vectors that every hot path runs (fusion's running mean, reading
+// fp16 storage, similarity): AVX2 + F16C + FMA when the CPU has them, chosen at run time, and
+// portable code otherwise. Runtime dispatch is why these are hand-written: the binary is built
+// for any x86-64 (no -march=native) yet must not lose the 8-wide fp16 conversions on the
+// machines that have them; Eigen has no fp16 <-> fp32 bulk conversion.
+#include <cstddef>
+#include <cstdint>
+
+namespace slamvdb {
+
+// Storage precision of embeddings. fp16 halves memory at 512-d (1024 B per voxel instead of 2048 B).
+enum class EmbeddingPrecision : uint8_t { kFloat32 = 0, kFloat16 = 1 };
+
+inline std::size_t bytes_per_value(EmbeddingPrecision p) { return p == EmbeddingPrecision::kFloat16 ? 2 : 4; }
+
+// A read-only embedding in its storage precision.
+struct EmbeddingView {
+  const void* data = nullptr;
+  EmbeddingPrecision precision = EmbeddingPrecision::kFloat32;
+};
+
+namespace kernels {
+
+bool has_avx2_f16c();  // what the dispatcher chose (for logs and benchmarks)
+
+void half_to_float(const uint16_t* in, float* out, std::size_t n);
+void float_to_half(const float* in, uint16_t* out, std::size_t n);
+// out[i] = value i of `v` decoded to fp32.
+void decode(EmbeddingView v, float* out, std::size_t n);
+
+// v <- v + (x - v) * w: Eq. 6.1's running mean with w = 1 / (n + 1), in place.
+void running_mean(float* v, const float* x, float w, std::size_t n);
+void running_mean(uint16_t* v, const float* x, float w, std::size_t n);
+
+// acc <- acc + w * v (v decoded from its precision): count-weighted sums for index reads and merges.
+void add_scaled(float* acc, EmbeddingView v, float w, std::size_t n);
+
+// Dot product of a stored embedding with an fp32 vector, and the stored embedding's squared norm.
+float dot(EmbeddingView v, const float* q, std::size_t n);
+float squared_norm(EmbeddingView v, std::size_t n);
+
+// True when all n values are finite.
+bool all_finite(const float* x, std::size_t n);
+
+}  // namespace kernels
+}  // namespace slamvdb

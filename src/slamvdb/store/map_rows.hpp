@@ -1,0 +1,43 @@
+#pragma once
+// The rows of one submap in a map file, written and read one submap at a time (the streaming
+// mapper writes a finished submap while mapping; a viewer may load one region).
+#include <cstdint>
+#include <map>
+#include <string>
+
+#include "slamvdb/store/map_store.hpp"
+#include "slamvdb/store/sqlite_db.hpp"
+
+namespace slamvdb::store {
+
+using Meta = std::map<std::string, std::string, std::less<>>;
+
+// Table definitions of the current format; indexes separately (a whole-map save adds them last).
+extern const char* const kSchema;
+extern const char* const kIndexes;
+
+// ---- meta ----
+Meta map_meta(const MapParams& params, const MapInfo& info);
+MapParams parse_params(const Meta& meta);  // validated; throws Error naming the bad entry
+MapInfo parse_info(const Meta& meta);
+const std::string& meta_value(const Meta& meta, const std::string& key);
+void write_meta(Database& db, const Meta& meta);
+Meta read_meta(Database& db);
+
+// ---- submaps ----
+SubmapSummary summarize(const Submap& submap);
+void write_submap_row(Database& db, const SubmapSummary& summary);
+std::vector<SubmapSummary> read_submap_rows(Database& db, int format_version);
+
+// ---- voxels of one submap ----
+// Returns the bytes of the written blobs (occupancy compressed, semantics raw).
+struct PayloadBytes {
+  uint64_t occupancy = 0, semantics = 0;
+};
+PayloadBytes write_submap_voxels(Database& db, const Submap& submap, EmbeddingPrecision precision);
+// Reads and validates one submap's rows into a VoxelMap (in the file's storage precision).
+VoxelMap read_submap_voxels(Database& db, int format_version, const SubmapSummary& summary, const MapParams& params);
+// Rows that name a submap the submaps table does not have.
+void check_no_orphan_rows(Database& db);
+
+}  // namespace slamvdb::store

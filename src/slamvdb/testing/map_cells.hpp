@@ -1,0 +1,45 @@
+#pragma once
+// Test helpers: a map's semantic cells read through the global index, decoded, keyed by cell.
+#include <map>
+#include <tuple>
+#include <vector>
+
+#include "slamvdb/map/semantic_map.hpp"
+
+namespace slamvdb::testing {
+
+struct DecodedCell {
+  uint32_t count = 0;
+  uint32_t entries = 0;
+  std::vector<float> embedding;
+};
+using CellTuple = std::tuple<int, int, int>;
+
+inline std::map<CellTuple, DecodedCell> index_cells(const SemanticMap& map) {
+  std::map<CellTuple, DecodedCell> out;
+  map.read_index([&](const GlobalIndex& index) {
+    std::vector<float> scratch(static_cast<std::size_t>(index.dim()));
+    for (std::size_t i = 0; i < index.size(); ++i) {
+      const IndexedVoxel v = index.read(i, scratch.data());
+      DecodedCell& c = out[{v.cell.x(), v.cell.y(), v.cell.z()}];
+      c.count = v.count;
+      c.entries = v.entries;
+      c.embedding.resize(scratch.size());
+      kernels::decode(v.embedding, c.embedding.data(), scratch.size());
+    }
+  });
+  return out;
+}
+
+// Bytes the semantic layers of all submaps allocate, per entry.
+inline double semantic_bytes_per_entry(const SemanticMap& map) {
+  std::size_t bytes = 0, entries = 0;
+  for (const SubmapInfo& info : map.submaps())
+    map.read_submap(info.id, [&](const Submap& s) {
+      bytes += s.voxels().semantics().memory_bytes();
+      entries += s.voxels().semantics().size();
+    });
+  return entries ? static_cast<double>(bytes) / static_cast<double>(entries) : 0.0;
+}
+
+}  // namespace slamvdb::testing
