@@ -91,7 +91,9 @@ void ProjectiveFusion::rasterise(const OccupancyGrid& grid, const CameraModel& c
       if (y0 > y1) y0 = y1 = static_cast<int>(std::lround(vc));
       x0 = std::max(x0, 0), y0 = std::max(y0, 0), x1 = std::min(x1, W - 1), y1 = std::min(y1, H - 1);
       if (x0 > x1 || y0 > y1) continue;  // entirely outside the image
-      const float d = static_cast<float>(dist);
+      // Another submap's voxel on the same surface lies at about the same depth (its grid is
+      // offset): it occludes only what is more than a voxel diagonal behind it.
+      const float d = static_cast<float>(target ? dist : dist + std::sqrt(3.0) * vs);
       const int32_t id = target ? static_cast<int32_t>(candidate_keys_.size()) : Association::kOtherSubmap;
       for (int y = y0; y <= y1; ++y) {
         float* drow = depth_.data() + static_cast<std::size_t>(y) * W;
