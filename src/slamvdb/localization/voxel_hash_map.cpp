@@ -48,21 +48,38 @@ void VoxelHashMap::remove_far_from(const Vec3d& origin) {
 
 bool VoxelHashMap::nearest(const Vec3d& query, Vec3d& neighbour, double& squared_distance) const {
   const VoxelKey c = voxel_of(query, voxel_size_);
+  // Distance from the query to the lower / upper faces of its voxel, per axis: a neighbouring
+  // voxel is searched only if its box can hold a point closer than the best found so far, and the
+  // query's own voxel is searched first, so most of the 26 neighbours are skipped.
+  const Vec3d lower = query - c.cast<double>() * voxel_size_;
+  const Vec3d upper = Vec3d::Constant(voxel_size_) - lower;
   double best = std::numeric_limits<double>::infinity();
   const Vec3d* best_point = nullptr;
-  for (int dx = -1; dx <= 1; ++dx)
-    for (int dy = -1; dy <= 1; ++dy)
-      for (int dz = -1; dz <= 1; ++dz) {
-        const auto it = voxels_.find(pack_voxel(VoxelKey(c.x() + dx, c.y() + dy, c.z() + dz)));
-        if (it == voxels_.end()) continue;
-        for (const Vec3d& q : it->second.points) {
-          const double d2 = (q - query).squaredNorm();
-          if (d2 < best) {
-            best = d2;
-            best_point = &q;
-          }
-        }
+  const auto search = [&](int dx, int dy, int dz) {
+    const auto it = voxels_.find(pack_voxel(VoxelKey(c.x() + dx, c.y() + dy, c.z() + dz)));
+    if (it == voxels_.end()) return;
+    for (const Vec3d& q : it->second.points) {
+      const double d2 = (q - query).squaredNorm();
+      if (d2 < best) {
+        best = d2;
+        best_point = &q;
       }
+    }
+  };
+  search(0, 0, 0);
+  const auto gap = [&](int d, int axis) { return d < 0 ? lower[axis] : d > 0 ? upper[axis] : 0.0; };
+  for (int dx = -1; dx <= 1; ++dx) {
+    const double gx = gap(dx, 0);
+    for (int dy = -1; dy <= 1; ++dy) {
+      const double gy = gap(dy, 1);
+      for (int dz = -1; dz <= 1; ++dz) {
+        if (dx == 0 && dy == 0 && dz == 0) continue;
+        const double gz = gap(dz, 2);
+        if (gx * gx + gy * gy + gz * gz >= best) continue;
+        search(dx, dy, dz);
+      }
+    }
+  }
   if (!best_point) return false;
   neighbour = *best_point;
   squared_distance = best;
