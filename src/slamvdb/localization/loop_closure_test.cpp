@@ -83,5 +83,60 @@ TEST(LoopClosingMapper, RemovesInjectedDriftOnASimulatedLoop) {
   }
 }
 
+TEST(LoopClosingMapper, NoFalseLoopAmongRepeatedLookAlikePlaces) {
+  synth::SynthConfig config = looping_drive_config();
+  config.scene = synth::SceneKind::kRepeatedPlaces;  // the same objects every 30 m
+  config.min_loop_m = 400.0;                         // longer than the drive: no place is revisited
+  const SimulatedDrive drive = simulate_drive(config);
+  LidarOdometry odometry;
+  LoopClosingMapper mapper;
+  std::size_t scan_context_candidates = 0;
+  for (std::size_t i = 0; i < drive.scans.size(); ++i) {
+    const OdometryResult r = odometry.register_scan(drive.stamps[i], drive.scans[i]);
+    for (const LoopAttempt& a : mapper.add_scan(drive.stamps[i], r.T_odom_sensor, drive.scans[i]).attempts)
+      scan_context_candidates += a.from_scan_context;
+  }
+  std::printf("SIMULATED repeated places, %.0f m: %zu ScanContext candidates, %zu loops accepted, rejected:",
+              drive.path_length_m, scan_context_candidates, mapper.loops().size());
+  for (std::size_t k = 0; k < mapper.rejections().size(); ++k)
+    std::printf(" %s %zu", to_string(static_cast<LoopRejection>(k)), mapper.rejections()[k]);
+  std::printf("\n");
+  EXPECT_GT(scan_context_candidates, 0u);  // the look-alikes do get proposed ...
+  EXPECT_EQ(mapper.loops().size(), 0u);    // ... and none is accepted
+}
+
+TEST(LoopClosingMapper, VerificationRejectsAWrongCandidate) {
+  // The first 40 m of a SIMULATED drive, then scans from 60-80 m further on whose odometry claims
+  // they are back at the start: proximity proposes the start keyframes, ICP verification must
+  // reject them.
+  const SimulatedDrive drive = simulate_drive(looping_drive_config(), 0, 100);
+  LoopClosingMapper mapper;
+  for (std::size_t i = 0; i < 40; ++i)
+    mapper.add_scan(drive.stamps[i], drive.T_world_sensor.front().inverse() * drive.T_world_sensor[i], drive.scans[i]);
+  std::size_t attempts = 0;
+  for (std::size_t i = 60; i < 80; ++i) {
+    // Poses back at the start (the place the odometry wrongly believes it is), on a path long enough.
+    const Pose claimed = drive.T_world_sensor.front().inverse() * drive.T_world_sensor[i - 60];
+    Pose T_odom = claimed;
+    const AddScanResult r = mapper.add_scan(drive.stamps[i] + 100.0, T_odom, drive.scans[i]);
+    attempts += r.attempts.size();
+  }
+  EXPECT_GT(attempts, 0u);
+  EXPECT_EQ(mapper.loops().size(), 0u);
+  EXPECT_EQ(mapper.rejected_total(), attempts);
+  EXPECT_EQ(mapper.rejections()[static_cast<std::size_t>(LoopRejection::kInconsistentWithOdometry)], 0u)
+      << "rejected by the geometry, not by the odometry-consistency test";
+}
+
+TEST(LoopClosingMapper, CorrectionIsInterpolatedBetweenKeyframes) {
+  LoopClosingMapper mapper;
+  EXPECT_TRUE(mapper.correction_at(5.0).isApprox(Pose::Identity()));
+  EXPECT_NE(slamvdb::testing::error_of([&] {
+              mapper.add_scan(1.0, Pose::Identity(), {});
+              mapper.add_scan(1.0, Pose::Identity(), {});
+            }),
+            "");
+}
+
 }  // namespace
 }  // namespace slamvdb::localization

@@ -25,7 +25,11 @@ Matrix6d isotropic_information(double sigma_translation, double sigma_rotation);
 
 struct PoseGraphOptions {
   int max_iterations = 100;
-  double robust_loss_scale = 1.0;  // Cauchy scale, in units of the edge's standard deviation
+  // Cauchy scale, in units of the edge's standard deviation: residuals well beyond it count little.
+  // Loops are verified before they get here, so the loss only has to stop a rare wrong one; a
+  // small scale would also out-vote a true loop that corrects a systematic drift, which the
+  // odometry edges (modelled as a random walk) make look improbable.
+  double robust_loss_scale = 5.0;
 };
 
 struct PoseGraphSummary {
