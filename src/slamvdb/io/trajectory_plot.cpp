@@ -27,12 +27,17 @@ void write_trajectory_plot(const std::filesystem::path& png, const std::vector<P
   };
   cv::Mat image(size_px, size_px, CV_8UC3, cv::Scalar(255, 255, 255));
   for (const auto& [a, b] : edges) cv::line(image, pixel(a), pixel(b), cv::Scalar(0, 160, 0), 1, cv::LINE_AA);
+  const auto mark_loops = [&] {  // drawn again over the lines: a loop's two ends are often one place
+    for (const auto& [a, b] : edges)
+      for (const Vec3d& p : {a, b}) cv::circle(image, pixel(p), 4, cv::Scalar(0, 160, 0), 1, cv::LINE_AA);
+  };
   for (const auto& l : lines) {
     const cv::Scalar colour(l.rgb[2], l.rgb[1], l.rgb[0]);
     for (std::size_t i = 1; i < l.positions.size(); ++i)
       cv::line(image, pixel(l.positions[i - 1]), pixel(l.positions[i]), colour, 2, cv::LINE_AA);
     if (!l.positions.empty()) cv::circle(image, pixel(l.positions.front()), 5, colour, cv::FILLED);
   }
+  mark_loops();
   // Legend.
   int y = 25;
   for (const auto& l : lines) {
