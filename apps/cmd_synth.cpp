@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 
 #include <chrono>
+#include <map>
 #include <cstdio>
 #include <memory>
 #include <optional>
@@ -67,6 +68,20 @@ void add(CLI::App& root) {
   cmd->add_option("--camera-rate", opt->config.camera_rate_hz, "Camera frame rate in Hz (the LiDAR runs at 10 Hz)")
       ->capture_default_str();
   cmd->add_option("--image-size", opt->image_size, "Image size WIDTHxHEIGHT")->capture_default_str();
+  cmd->add_option("--scene", opt->config.scene,
+                  "offroad: the loop trail scene; repeated: one arrangement of objects repeated every "
+                  "--repeat-spacing metres (look-alike places, for testing loop closure against false loops)")
+      ->transform(CLI::CheckedTransformer(std::map<std::string, synth::SceneKind>{
+          {"offroad", synth::SceneKind::kOffroad}, {"repeated", synth::SceneKind::kRepeatedPlaces}}))
+      ->default_str("offroad");
+  cmd->add_option("--repeat-spacing", opt->config.repeat_spacing_m, "Metres between repeated places (--scene repeated)")
+      ->capture_default_str();
+  cmd->add_option("--min-loop", opt->config.min_loop_m,
+                  "Shortest loop built (metres); a loop longer than --length is never revisited")
+      ->capture_default_str();
+  cmd->add_option("--lidar-columns", opt->config.lidar.columns,
+                  "Simulated LiDAR columns per turn (1024; 2048 gives full-size 131k-point OS1-64 scans)")
+      ->capture_default_str();
   cmd->add_flag("--keep-no-return", opt->config.keep_no_return,
                 "Write rays without a return as all-zero points, like the real sensor's files");
   cmd->add_flag("--force", opt->force, "Replace a sequence already in OUT_DIR");

@@ -282,4 +282,38 @@ Scene build_offroad_scene(const LoopPath& path, uint64_t seed) {
   return Scene(std::move(terrain), layout.take_objects(), std::move(patches));
 }
 
+Scene build_repeated_places_scene(const LoopPath& path, uint64_t seed, double spacing) {
+  const double P = path.perimeter();
+  Eigen::AlignedBox2d extent = path.bounds();
+  extent.extend(extent.min() - Eigen::Vector2d::Constant(120.0));
+  extent.extend(extent.max() + Eigen::Vector2d::Constant(120.0));
+  Terrain terrain(extent, seed, kGrass);
+  for (double s = 0.0; s < P; s += 0.25) terrain.paint_disc(path.point(s), kTrailHalfWidth, kDirt);
+  Layout layout(path, terrain, seed);
+  // The module, in the trail's frame (along, lateral): identical at every repetition.
+  for (double s0 = 0.5 * spacing; s0 + spacing < P; s0 += spacing) {
+    const auto at = [&](double along, double lateral) { return path.at(s0 + along, lateral); };
+    const double heading = heading_at(path, s0);
+    layout.add_box_on_ground(kBuilding, Eigen::Vector3f(0.6f, 0.5f, 0.45f), at(0.0, -12.0), Eigen::Vector2d(4.0, 3.0),
+                             3.5, heading);
+    layout.add_vehicle(at(6.0, 7.0), heading, Eigen::Vector3f(0.3f, 0.3f, 0.35f));
+    for (const auto& [along, lateral] : {std::pair{-6.0, 9.0}, std::pair{3.0, 14.0}, std::pair{-9.0, -8.0}}) {
+      const Eigen::Vector2d c = at(along, lateral);
+      const double g = layout.ground(c);
+      layout.add(Primitive::capsule(kTree, Eigen::Vector3f(0.34f, 0.25f, 0.17f), Vec3d(c.x(), c.y(), g - 0.5),
+                                    Vec3d(c.x(), c.y(), g + 5.5), 0.25));
+      layout.add(Primitive::ellipsoid(kTree, Eigen::Vector3f(0.15f, 0.36f, 0.12f), Vec3d(c.x(), c.y(), g + 5.5),
+                                      Vec3d(2.2, 2.2, 2.5)));
+    }
+    const Eigen::Vector2d pole = at(-3.0, -5.5);
+    layout.add(Primitive::capsule(kPole, Eigen::Vector3f(0.42f, 0.35f, 0.27f),
+                                  Vec3d(pole.x(), pole.y(), layout.ground(pole) - 0.3),
+                                  Vec3d(pole.x(), pole.y(), layout.ground(pole) + 7.0), 0.14));
+    for (int i = 0; i < 3; ++i)
+      layout.add_box_on_ground(kBarrier, Eigen::Vector3f(0.95f, 0.52f, 0.15f), at(2.0 + 2.3 * i, -4.6),
+                               Eigen::Vector2d(1.0, 0.3), 0.8, heading_at(path, s0 + 2.0 + 2.3 * i));
+  }
+  return Scene(std::move(terrain), layout.take_objects(), {});
+}
+
 }  // namespace slamvdb::synth

@@ -12,4 +12,8 @@ namespace slamvdb::synth {
 
 Scene build_offroad_scene(const LoopPath& path, uint64_t seed);
 
+// Look-alike places: one arrangement of objects, fixed in the trail's frame, repeated every
+// `spacing` metres along the loop on grass with a dirt trail (SceneKind::kRepeatedPlaces).
+Scene build_repeated_places_scene(const LoopPath& path, uint64_t seed, double spacing);
+
 }  // namespace slamvdb::synth

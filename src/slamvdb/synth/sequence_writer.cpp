@@ -187,6 +187,7 @@ SynthSummary write_synthetic_sequence(const SynthConfig& config, const fs::path&
       {"simulated", true},
       {"generator", "slamvdb synth (simulated off-road sequence, RELLIS-3D layout)"},
       {"seed", config.seed},
+      {"scene", config.scene == SceneKind::kRepeatedPlaces ? "repeated" : "offroad"},
       {"parameters", config_json(config)},
       {"counts",
        {{"scans", scans},

@@ -35,6 +35,7 @@ void SynthConfig::validate() const {
           fmt::format("image size {}x{} must be within 16..8192 pixels per side", image_width, image_height));
   require(jpeg_quality >= 1 && jpeg_quality <= 100, fmt::format("JPEG quality {} must be in 1..100", jpeg_quality));
   require(std::isfinite(base_stamp) && base_stamp >= 0.0, fmt::format("base stamp {} must be >= 0", base_stamp));
+  require(repeat_spacing_m >= 10.0, fmt::format("repeat spacing {} m must be >= 10", repeat_spacing_m));
   lidar.validate();
 }
 
@@ -42,7 +43,9 @@ SynthWorld build_synthetic_world(const SynthConfig& config) {
   config.validate();
   const double perimeter = std::max(config.length_m - config.revisit_overlap_m, config.min_loop_m);
   LoopPath path(perimeter, config.seed);
-  auto scene = std::make_shared<const Scene>(build_offroad_scene(path, config.seed));
+  auto scene = std::make_shared<const Scene>(config.scene == SceneKind::kRepeatedPlaces
+                                                 ? build_repeated_places_scene(path, config.seed, config.repeat_spacing_m)
+                                                 : build_offroad_scene(path, config.seed));
   std::shared_ptr<const Terrain> terrain(scene, &scene->terrain());
   SimulatedTrajectory trajectory(std::move(path), terrain, config.speed_mps, config.sensor_height_m);
   SynthWorld world{config,

@@ -13,8 +13,15 @@
 
 namespace slamvdb::synth {
 
+// kOffroad: the default loop trail scene. kRepeatedPlaces: the same arrangement of objects (a shed,
+// a parked vehicle, trees, a pole, barriers) repeated every `repeat_spacing_m` along the trail on
+// otherwise bare grass, for testing that place recognition does not close false loops.
+enum class SceneKind { kOffroad, kRepeatedPlaces };
+
 struct SynthConfig {
   uint64_t seed = 1;
+  SceneKind scene = SceneKind::kOffroad;
+  double repeat_spacing_m = 30.0;  // kRepeatedPlaces only
   double length_m = 320.0;  // driven path length (at least)
   double speed_mps = 5.0;
   double revisit_overlap_m = 25.0;  // the loop closes after length - overlap; the drive goes on past its start

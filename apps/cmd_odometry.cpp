@@ -1,0 +1,176 @@
+// `slamvdb odometry`: LiDAR odometry (KISS-ICP-style) over a dataset folder or a folder of scan
+// files, optionally with loop closure (ScanContext + ICP verification + pose graph); writes the
+// poses T_world_sensor (world = the first scan's sensor frame) in KITTI or TUM format.
+#include <fmt/format.h>
+#include <tbb/global_control.h>
+
+#include <chrono>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <optional>
+
+#include "command_registry.hpp"
+#include "progress.hpp"
+#include "slamvdb/core/error.hpp"
+#include "slamvdb/io/scan_source.hpp"
+#include "slamvdb/io/trajectory_io.hpp"
+#include "slamvdb/localization/loop_closure.hpp"
+#include "slamvdb/localization/odometry.hpp"
+
+namespace slamvdb::cli {
+namespace {
+
+namespace fs = std::filesystem;
+using namespace slamvdb::localization;
+
+struct Options {
+  std::string input, output, json;
+  PoseFormat format = PoseFormat::kKitti;
+  bool loop_closure = false;
+  double rate_hz = 10.0;
+  OdometryConfig odometry;
+  double keyframe_distance = 2.0;
+  int max_consecutive_failures = 10;
+  int threads = 0;
+};
+
+const CLI::Validator kWritableParent(
+    [](std::string& path) -> std::string {
+      const fs::path parent = fs::absolute(fs::path(path)).parent_path();
+      if (!fs::is_directory(parent)) return fmt::format("directory {} does not exist", parent.string());
+      if (fs::is_directory(path)) return fmt::format("{} is a directory", path);
+      return {};
+    },
+    "PATH", "in an existing directory");
+
+void run(const Options& opt) {
+  std::optional<tbb::global_control> threads;
+  if (opt.threads > 0) threads.emplace(tbb::global_control::max_allowed_parallelism, opt.threads);
+  const ScanSource source = open_scan_source(opt.input, opt.rate_hz);
+  for (const auto& note : source.notes) fmt::print(stderr, "note: {}\n", note);
+  LidarOdometry odometry(opt.odometry);
+  std::optional<LoopClosingMapper> mapper;
+  if (opt.loop_closure) {
+    LoopClosureConfig config;
+    config.keyframe_distance = opt.keyframe_distance;
+    mapper.emplace(config);
+  }
+  std::vector<double> stamps;
+  std::vector<Pose> poses;
+  std::map<std::string, std::size_t> failures;
+  std::size_t non_finite = 0, out_of_range = 0, recovered = 0;
+  int consecutive = 0;
+  double distance = 0.0, busy = 0.0;
+  ProgressBar bar("odometry", source.scans.size());
+  for (std::size_t i = 0; i < source.scans.size(); ++i) {
+    const ScanFile& file = source.scans[i];
+    const ScanPoints scan = load_scan_points(file);
+    const auto start = std::chrono::steady_clock::now();
+    const OdometryResult r = odometry.register_scan(file.stamp, scan.points, scan.time.empty() ? nullptr : &scan.time);
+    if (mapper) mapper->add_scan(file.stamp, r.T_odom_sensor, scan.points, r.predicted_only);
+    busy += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    non_finite += r.non_finite_points;
+    out_of_range += r.out_of_range_points;
+    recovered += r.recovered && r.status == ScanStatus::kOk;
+    if (r.status != ScanStatus::kOk) {
+      ++failures[to_string(r.status)];
+      fmt::print(stderr, "\nscan {} ({}): {}: {}; constant-velocity prediction used\n", i, file.path.string(),
+                 to_string(r.status), r.reason);
+      if (++consecutive > opt.max_consecutive_failures)
+        throw Error(fmt::format("odometry lost: {} scans in a row could not be registered (last: {}); poses not "
+                                "written",
+                                consecutive, file.path.string()));
+    } else {
+      consecutive = 0;
+    }
+    if (!poses.empty()) distance += (r.T_odom_sensor.translation() - poses.back().translation()).norm();
+    stamps.push_back(file.stamp);
+    poses.push_back(r.T_odom_sensor);
+    bar.update(i + 1, fmt::format("{:.0f} m, {:.1f} Hz{}", distance, (i + 1) / std::max(busy, 1e-9),
+                                  mapper ? fmt::format(", {} loops", mapper->loops().size()) : ""));
+  }
+  bar.finish();
+  if (mapper)
+    for (std::size_t i = 0; i < poses.size(); ++i) poses[i] = mapper->corrected_pose(stamps[i], poses[i]);
+  write_trajectory(opt.output, stamps, poses, opt.format);
+
+  std::size_t failed = 0;
+  for (const auto& [reason, n] : failures) failed += n;
+  fmt::print("odometry of {} ({}): {} scans, {:.1f} m, {:.1f} scans/s\n", opt.input, source.kind, poses.size(),
+             distance, poses.size() / std::max(busy, 1e-9));
+  fmt::print("  registered   {} ({} after a wide retry)\n", poses.size() - failed, recovered);
+  for (const auto& [reason, n] : failures) fmt::print("  not registered ({}): {} (prediction used)\n", reason, n);
+  fmt::print("  points dropped: {} non-finite, {} out of range\n", non_finite, out_of_range);
+  nlohmann::json summary = {{"input", opt.input},  {"scans", poses.size()}, {"distance_m", distance},
+                            {"registered", poses.size() - failed}, {"recovered", recovered},
+                            {"not_registered", failures}, {"loop_closure", opt.loop_closure}};
+  if (mapper) {
+    fmt::print("  keyframes    {}\n  loops        {} accepted, {} rejected", mapper->keyframes().size(),
+               mapper->loops().size(), mapper->rejected_total());
+    nlohmann::json rejected = nlohmann::json::object(), loops = nlohmann::json::array();
+    for (std::size_t k = 0; k < mapper->rejections().size(); ++k) {
+      const char* reason = to_string(static_cast<LoopRejection>(k));
+      rejected[reason] = mapper->rejections()[k];
+      if (mapper->rejections()[k] > 0) fmt::print(" ({}: {})", reason, mapper->rejections()[k]);
+    }
+    fmt::print("\n");
+    for (const LoopClosure& l : mapper->loops())
+      loops.push_back({{"candidate_stamp", l.candidate_stamp}, {"query_stamp", l.query_stamp}, {"overlap", l.overlap},
+                       {"rmse", l.rmse}, {"scan_context", l.from_scan_context}});
+    summary["keyframes"] = mapper->keyframes().size();
+    summary["loops"] = loops;
+    summary["loops_rejected"] = rejected;
+  }
+  fmt::print("  poses written to {} ({})\n", opt.output, opt.format == PoseFormat::kKitti ? "KITTI" : "TUM");
+  if (!opt.json.empty()) {
+    std::ofstream out(opt.json);
+    out << summary.dump(2) << "\n";
+    if (!out) throw Error(fmt::format("cannot write {}", opt.json));
+  }
+}
+
+void add(CLI::App& root) {
+  auto opt = std::make_shared<Options>();
+  auto* cmd = root.add_subcommand(
+      "odometry",
+      "LiDAR odometry (KISS-ICP-style scan-to-local-map ICP) over a dataset folder (RELLIS-3D or KITTI layout) or a "
+      "folder of scan files (KITTI .bin or .pcd, in name order; stamps from times.txt there, else index / --rate), "
+      "optionally with loop closure; writes T_world_sensor per scan (world = the first scan's sensor frame).");
+  cmd->add_option("input", opt->input, "Dataset folder or folder of .bin / .pcd scans")->required()->check(CLI::ExistingDirectory);
+  cmd->add_option("-o,--output", opt->output, "Pose file to write")->required()->check(kWritableParent);
+  cmd->add_option("--format", opt->format, "Pose file format: kitti (3x4 rows) or tum (stamp tx ty tz qx qy qz qw)")
+      ->transform(CLI::CheckedTransformer(std::map<std::string, PoseFormat>{{"kitti", PoseFormat::kKitti},
+                                                                             {"tum", PoseFormat::kTum}}))
+      ->default_str("kitti");
+  cmd->add_flag("--loop-closure", opt->loop_closure,
+                "Close loops (ScanContext + proximity candidates, ICP verification, pose graph) and write the "
+                "corrected poses");
+  cmd->add_option("--json", opt->json, "Also write a JSON summary (counts, accepted loops)")->check(kWritableParent);
+  cmd->add_option("--rate", opt->rate_hz, "Scan rate (Hz) for stamping a folder without times.txt")
+      ->check(CLI::PositiveNumber)->capture_default_str();
+  cmd->add_option("--voxel-size", opt->odometry.voxel_size, "Local-map voxel (m)")->check(CLI::Range(0.05, 10.0))->capture_default_str();
+  cmd->add_option("--max-range", opt->odometry.max_range, "Farthest return used (m)")->check(CLI::Range(1.0, 1000.0))->capture_default_str();
+  cmd->add_option("--min-range", opt->odometry.min_range, "Nearest return used (m)")->check(CLI::Range(0.0, 100.0))->capture_default_str();
+  cmd->add_option("--keyframe-distance", opt->keyframe_distance, "Metres of path between loop-closure keyframes")
+      ->check(CLI::Range(0.1, 100.0))->capture_default_str();
+  cmd->add_option("--max-consecutive-failures", opt->max_consecutive_failures,
+                  "Fail when more scans than this in a row cannot be registered")
+      ->check(CLI::NonNegativeNumber)->capture_default_str();
+  cmd->add_option("--threads", opt->threads, "Worker threads (0: all cores)")->check(CLI::NonNegativeNumber);
+  cmd->callback([opt] {
+    try {
+      opt->odometry.validate();
+    } catch (const Error& e) {
+      throw CLI::ValidationError(e.what());
+    }
+    run(*opt);
+  });
+}
+
+const RegisterCommand reg{add};
+
+}  // namespace
+}  // namespace slamvdb::cli

@@ -1,0 +1,268 @@
+#include "slamvdb/io/pcd.hpp"
+
+#include <fmt/format.h>
+#include <fmt/std.h>
+#include <lzf.h>
+
+#include <charconv>
+#include <cmath>
+#include <cstring>
+#include <fstream>
+#include <limits>
+#include <sstream>
+#include <string>
+
+#include "slamvdb/core/error.hpp"
+
+namespace slamvdb {
+
+namespace {
+namespace fs = std::filesystem;
+
+struct Field {
+  std::string name;
+  int size = 4;
+  char type = 'F';
+  int count = 1;
+  std::size_t offset = 0;  // bytes into a point (binary) or into the field's block (compressed)
+};
+
+struct Header {
+  std::vector<Field> fields;
+  std::size_t width = 0, height = 1, points = 0, point_size = 0;
+  std::string data;
+};
+
+std::vector<std::string> split(const std::string& line) {
+  std::istringstream in(line);
+  std::vector<std::string> words;
+  for (std::string w; in >> w;) words.push_back(w);
+  return words;
+}
+
+std::size_t parse_count(const std::string& text, const fs::path& file, const std::string& key) {
+  std::size_t v = 0;
+  const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), v);
+  if (ec != std::errc() || end != text.data() + text.size())
+    throw Error(fmt::format("{}: PCD header {} '{}' is not a non-negative integer", file, key, text));
+  return v;
+}
+
+Header read_header(std::istream& in, const fs::path& file) {
+  Header h;
+  std::vector<std::string> names, sizes, types, counts;
+  bool have_points = false;
+  std::string line;
+  while (std::getline(in, line)) {
+    if (!line.empty() && line.back() == '\r') line.pop_back();
+    const auto words = split(line);
+    if (words.empty() || words[0][0] == '#') continue;
+    const std::string& key = words[0];
+    const std::vector<std::string> values(words.begin() + 1, words.end());
+    if (key == "VERSION" || key == "VIEWPOINT") continue;
+    if (key == "FIELDS" || key == "COLUMNS") names = values;
+    else if (key == "SIZE") sizes = values;
+    else if (key == "TYPE") types = values;
+    else if (key == "COUNT") counts = values;
+    else if (key == "WIDTH" && values.size() == 1) h.width = parse_count(values[0], file, key);
+    else if (key == "HEIGHT" && values.size() == 1) h.height = parse_count(values[0], file, key);
+    else if (key == "POINTS" && values.size() == 1) h.points = parse_count(values[0], file, key), have_points = true;
+    else if (key == "DATA" && values.size() == 1) {
+      h.data = values[0];
+      break;
+    } else
+      throw Error(fmt::format("{}: unexpected PCD header line '{}'", file, line));
+  }
+  if (h.data.empty()) throw Error(fmt::format("{}: not a PCD file (no DATA line in the header)", file));
+  if (h.data != "ascii" && h.data != "binary" && h.data != "binary_compressed")
+    throw Error(fmt::format("{}: unknown PCD DATA '{}' (ascii, binary or binary_compressed)", file, h.data));
+  if (names.empty()) throw Error(fmt::format("{}: PCD header has no FIELDS", file));
+  if (sizes.size() != names.size() || types.size() != names.size() || (!counts.empty() && counts.size() != names.size()))
+    throw Error(fmt::format("{}: PCD header has {} FIELDS but {} SIZE, {} TYPE and {} COUNT entries", file,
+                            names.size(), sizes.size(), types.size(), counts.size()));
+  std::size_t offset = 0;
+  for (std::size_t i = 0; i < names.size(); ++i) {
+    Field f;
+    f.name = names[i];
+    f.size = static_cast<int>(parse_count(sizes[i], file, "SIZE"));
+    f.type = types[i].size() == 1 ? types[i][0] : '?';
+    f.count = counts.empty() ? 1 : static_cast<int>(parse_count(counts[i], file, "COUNT"));
+    const bool ok = (f.type == 'F' && (f.size == 4 || f.size == 8)) ||
+                    ((f.type == 'I' || f.type == 'U') && (f.size == 1 || f.size == 2 || f.size == 4 || f.size == 8));
+    if (!ok || f.count < 1)
+      throw Error(fmt::format("{}: PCD field '{}' has unsupported TYPE {} SIZE {} COUNT {}", file, f.name, types[i],
+                              f.size, f.count));
+    f.offset = offset;
+    offset += static_cast<std::size_t>(f.size) * f.count;
+    h.fields.push_back(f);
+  }
+  h.point_size = offset;
+  if (!have_points) h.points = h.width * h.height;
+  if (h.points != h.width * h.height)
+    throw Error(fmt::format("{}: PCD header says POINTS {} but WIDTH x HEIGHT = {} x {}", file, h.points, h.width,
+                            h.height));
+  return h;
+}
+
+double decode(const unsigned char* p, const Field& f) {
+  const auto get = [&](auto v) {
+    std::memcpy(&v, p, sizeof v);
+    return static_cast<double>(v);
+  };
+  if (f.type == 'F') return f.size == 4 ? get(float{}) : get(double{});
+  if (f.type == 'I') {
+    switch (f.size) {
+      case 1: return get(int8_t{});
+      case 2: return get(int16_t{});
+      case 4: return get(int32_t{});
+      default: return get(int64_t{});
+    }
+  }
+  switch (f.size) {
+    case 1: return get(uint8_t{});
+    case 2: return get(uint16_t{});
+    case 4: return get(uint32_t{});
+    default: return get(uint64_t{});
+  }
+}
+
+const Field* find_field(const Header& h, std::initializer_list<const char*> names) {
+  for (const char* n : names)
+    for (const Field& f : h.fields)
+      if (f.name == n) return &f;
+  return nullptr;
+}
+}  // namespace
+
+PcdCloud read_pcd(const fs::path& file) {
+  std::ifstream in(file, std::ios::binary);
+  if (!in) throw Error(fmt::format("cannot open PCD file {}", file));
+  const Header h = read_header(in, file);
+  const Field* fx = find_field(h, {"x"});
+  const Field* fy = find_field(h, {"y"});
+  const Field* fz = find_field(h, {"z"});
+  if (!fx || !fy || !fz) throw Error(fmt::format("{}: PCD file has no x y z fields", file));
+  const Field* fi = find_field(h, {"intensity", "reflectivity"});
+  const Field* ft = find_field(h, {"t", "time", "timestamp"});
+  // value(point, field) for the first element of a field, whatever the encoding.
+  std::vector<unsigned char> bytes;
+  std::vector<double> ascii_values;
+  std::size_t values_per_point = 0;
+  for (const Field& f : h.fields) values_per_point += f.count;
+  std::vector<std::size_t> ascii_index(h.fields.size());
+  for (std::size_t i = 0, k = 0; i < h.fields.size(); k += h.fields[i].count, ++i) ascii_index[i] = k;
+
+  if (h.data == "ascii") {
+    ascii_values.reserve(h.points * values_per_point);
+    std::string word;
+    while (ascii_values.size() < h.points * values_per_point && in >> word) {
+      double v = 0.0;
+      if (word == "nan" || word == "NaN" || word == "-nan") v = std::numeric_limits<double>::quiet_NaN();
+      else {
+        const auto [end, ec] = std::from_chars(word.data(), word.data() + word.size(), v);
+        if (ec != std::errc() || end != word.data() + word.size())
+          throw Error(fmt::format("{}: PCD value '{}' of point {} is not a number", file, word,
+                                  ascii_values.size() / values_per_point));
+      }
+      ascii_values.push_back(v);
+    }
+    if (ascii_values.size() < h.points * values_per_point)
+      throw Error(fmt::format("{}: truncated PCD data: {} of {} values for {} points", file, ascii_values.size(),
+                              h.points * values_per_point, h.points));
+  } else if (h.data == "binary") {
+    bytes.resize(h.points * h.point_size);
+    in.read(reinterpret_cast<char*>(bytes.data()), static_cast<std::streamsize>(bytes.size()));
+    if (static_cast<std::size_t>(in.gcount()) != bytes.size())
+      throw Error(fmt::format("{}: truncated PCD data: {} of {} bytes for {} points", file, in.gcount(), bytes.size(),
+                              h.points));
+  } else {
+    uint32_t sizes[2] = {0, 0};
+    in.read(reinterpret_cast<char*>(sizes), sizeof sizes);
+    if (in.gcount() != sizeof sizes) throw Error(fmt::format("{}: truncated PCD data: no compressed sizes", file));
+    if (sizes[1] != h.points * h.point_size)
+      throw Error(fmt::format("{}: PCD compressed block would hold {} bytes, expected {} for {} points", file,
+                              sizes[1], h.points * h.point_size, h.points));
+    std::vector<unsigned char> packed(sizes[0]);
+    in.read(reinterpret_cast<char*>(packed.data()), sizes[0]);
+    if (static_cast<std::size_t>(in.gcount()) != packed.size())
+      throw Error(fmt::format("{}: truncated PCD data: {} of {} compressed bytes", file, in.gcount(), packed.size()));
+    bytes.resize(sizes[1]);
+    if (sizes[1] > 0 && lzf_decompress(packed.data(), sizes[0], bytes.data(), sizes[1]) != sizes[1])
+      throw Error(fmt::format("{}: corrupt PCD compressed data (LZF)", file));
+  }
+
+  const bool compressed = h.data == "binary_compressed";
+  const auto value = [&](std::size_t point, const Field& f) -> double {
+    if (!ascii_values.empty() || h.data == "ascii")
+      return ascii_values[point * values_per_point + ascii_index[&f - h.fields.data()]];
+    // Compressed data are stored field by field (all points' values of a field together).
+    const std::size_t at = compressed ? f.offset * h.points + point * f.size * f.count : point * h.point_size + f.offset;
+    return decode(bytes.data() + at, f);
+  };
+  PcdCloud cloud;
+  cloud.points.resize(h.points);
+  for (std::size_t i = 0; i < h.points; ++i)
+    cloud.points[i] = Vec3f(static_cast<float>(value(i, *fx)), static_cast<float>(value(i, *fy)),
+                            static_cast<float>(value(i, *fz)));
+  if (fi) {
+    cloud.intensity.resize(h.points);
+    for (std::size_t i = 0; i < h.points; ++i) cloud.intensity[i] = static_cast<float>(value(i, *fi));
+  }
+  if (ft) {
+    cloud.time.resize(h.points);
+    for (std::size_t i = 0; i < h.points; ++i) cloud.time[i] = static_cast<float>(value(i, *ft));
+  }
+  return cloud;
+}
+
+void write_pcd(const fs::path& file, const PcdCloud& cloud, PcdEncoding encoding) {
+  const std::size_t n = cloud.points.size();
+  if ((!cloud.intensity.empty() && cloud.intensity.size() != n) || (!cloud.time.empty() && cloud.time.size() != n))
+    throw Error(fmt::format("cannot write {}: intensity/time sizes do not match {} points", file, n));
+  std::vector<std::vector<float>> columns(3, std::vector<float>(n));
+  std::string fields = "x y z";
+  for (std::size_t i = 0; i < n; ++i)
+    for (int a = 0; a < 3; ++a) columns[a][i] = cloud.points[i][a];
+  if (!cloud.intensity.empty()) columns.push_back(cloud.intensity), fields += " intensity";
+  if (!cloud.time.empty()) columns.push_back(cloud.time), fields += " t";
+  const std::size_t nf = columns.size();
+  const char* data = encoding == PcdEncoding::kAscii ? "ascii" : encoding == PcdEncoding::kBinary ? "binary" : "binary_compressed";
+  const auto repeat = [nf](const char* word) {
+    std::string s;
+    for (std::size_t k = 0; k < nf; ++k) s += word;
+    return s;
+  };
+  const std::string header = fmt::format(
+      "# .PCD v0.7 - Point Cloud Data file format\nVERSION 0.7\nFIELDS {}\nSIZE{}\nTYPE{}\nCOUNT{}\nWIDTH {}\n"
+      "HEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS {}\nDATA {}\n",
+      fields, repeat(" 4"), repeat(" F"), repeat(" 1"), n, n, data);
+  std::ofstream out(file, std::ios::binary);
+  if (!out) throw Error(fmt::format("cannot write {}", file));
+  out << header;
+  if (encoding == PcdEncoding::kAscii) {
+    for (std::size_t i = 0; i < n; ++i) {
+      for (std::size_t k = 0; k < nf; ++k) out << (k ? " " : "") << fmt::format("{}", columns[k][i]);
+      out << '\n';
+    }
+  } else if (encoding == PcdEncoding::kBinary) {
+    std::vector<float> row(nf);
+    for (std::size_t i = 0; i < n; ++i) {
+      for (std::size_t k = 0; k < nf; ++k) row[k] = columns[k][i];
+      out.write(reinterpret_cast<const char*>(row.data()), static_cast<std::streamsize>(nf * sizeof(float)));
+    }
+  } else {
+    std::vector<float> soa;
+    soa.reserve(n * nf);
+    for (const auto& c : columns) soa.insert(soa.end(), c.begin(), c.end());
+    const unsigned int raw = static_cast<unsigned int>(soa.size() * sizeof(float));
+    std::vector<unsigned char> packed(raw + raw / 16 + 64);
+    unsigned int size = raw == 0 ? 0 : lzf_compress(soa.data(), raw, packed.data(), static_cast<unsigned int>(packed.size()));
+    if (raw > 0 && size == 0) throw Error(fmt::format("cannot write {}: LZF compression failed", file));
+    const uint32_t sizes[2] = {size, raw};
+    out.write(reinterpret_cast<const char*>(sizes), sizeof sizes);
+    out.write(reinterpret_cast<const char*>(packed.data()), size);
+  }
+  if (!out) throw Error(fmt::format("cannot write {}", file));
+}
+
+}  // namespace slamvdb

@@ -1,0 +1,42 @@
+#pragma once
+// Robust point-to-point ICP against a VoxelHashMap (Gauss-Newton on SE(3), Geman-McClure
+// weights), parallel over the points with a deterministic TBB reduction.
+#include <cstddef>
+#include <vector>
+
+#include "slamvdb/core/types.hpp"
+#include "slamvdb/localization/voxel_hash_map.hpp"
+
+namespace slamvdb::localization {
+
+struct IcpOptions {
+  double max_correspondence_distance = 3.0;  // pairs farther apart are ignored
+  double kernel_scale = 1.0;                 // Geman-McClure kappa in rho(e) = (e^2/2) / (kappa + e^2)
+  int max_iterations = 500;
+  double convergence = 1e-4;  // stop when the update's twist norm falls below this
+  std::size_t min_correspondences = 30;
+};
+
+struct IcpResult {
+  Pose T_map_sensor = Pose::Identity();
+  int iterations = 0;
+  bool converged = false;               // the update fell below `convergence`
+  std::size_t correspondences = 0;      // at the last iteration
+  bool enough_correspondences = false;  // never fewer than min_correspondences
+};
+
+// Aligns `source` (sensor frame) to `target`, starting from `initial_guess` (T_map_sensor).
+IcpResult align_point_to_point(const std::vector<Vec3d>& source, const VoxelHashMap& target, const Pose& initial_guess,
+                               const IcpOptions& options);
+
+struct AlignmentQuality {
+  std::size_t points = 0;
+  std::size_t inliers = 0;    // points with a map point within inlier_distance
+  double inlier_rmse = 0.0;   // metres, over the inliers
+  double inlier_fraction() const { return points ? static_cast<double>(inliers) / points : 0.0; }
+};
+// How well `source` at T_map_sensor lies on `target`.
+AlignmentQuality alignment_quality(const std::vector<Vec3d>& source, const VoxelHashMap& target,
+                                   const Pose& T_map_sensor, double inlier_distance);
+
+}  // namespace slamvdb::localization
