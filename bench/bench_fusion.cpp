@@ -13,7 +13,7 @@ namespace {
 struct FusionSetup {
   VoxelMap map;
   CameraModel camera = bench::rellis_camera().scaled(192, 128);
-  Pose T_map_camera = bench::rellis_T_lidar_camera();
+  Pose T_submap_camera = bench::rellis_T_lidar_camera();
   FeatureMap features{512, 128, 192};
 
   // drive_m > 0: the scan is also inserted every 5 m along a drive of that length ending at the
@@ -37,7 +37,7 @@ void BM_FuseFeatureMap(benchmark::State& state) {
   FusionSetup s(static_cast<EmbeddingPrecision>(state.range(0)));
   ProjectiveFusion fusion;
   FusionStats stats;
-  for (auto _ : state) stats = fusion.fuse(s.map, s.features, s.camera, s.T_map_camera);
+  for (auto _ : state) stats = fusion.fuse(s.map, s.features, s.camera, s.T_submap_camera);
   state.counters["voxels"] = static_cast<double>(stats.fused_voxels);
   state.counters["candidates"] = static_cast<double>(stats.candidates);
   state.counters["pixels"] = static_cast<double>(stats.pixels_used);
@@ -49,7 +49,7 @@ void BM_FuseFeatureMapLargeMap(benchmark::State& state) {
   FusionSetup s(EmbeddingPrecision::kFloat16, 500.0);
   ProjectiveFusion fusion;
   FusionStats stats;
-  for (auto _ : state) stats = fusion.fuse(s.map, s.features, s.camera, s.T_map_camera);
+  for (auto _ : state) stats = fusion.fuse(s.map, s.features, s.camera, s.T_submap_camera);
   state.counters["voxels"] = static_cast<double>(stats.fused_voxels);
   state.counters["map_blocks"] = static_cast<double>(s.map.occupancy().num_blocks());
 }
@@ -58,7 +58,7 @@ BENCHMARK(BM_FuseFeatureMapLargeMap)->Unit(benchmark::kMillisecond)->UseRealTime
 void BM_AssociateOnly(benchmark::State& state) {
   FusionSetup s(EmbeddingPrecision::kFloat16);
   ProjectiveFusion fusion;
-  for (auto _ : state) benchmark::DoNotOptimize(fusion.associate(s.map.occupancy(), s.camera, s.T_map_camera));
+  for (auto _ : state) benchmark::DoNotOptimize(fusion.associate(s.map.occupancy(), s.camera, s.T_submap_camera));
 }
 BENCHMARK(BM_AssociateOnly)->Unit(benchmark::kMillisecond)->UseRealTime();
 

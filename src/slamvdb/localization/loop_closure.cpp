@@ -196,7 +196,7 @@ LoopAttempt LoopClosingMapper::verify(std::size_t query, const Candidate& candid
       ok = false;
       break;
     }
-    T = r.T_map_sensor;
+    T = r.T_target_source;
   }
   if (!ok) {
     attempt.rejection = LoopRejection::kIcpFailed;

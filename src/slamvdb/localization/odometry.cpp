@@ -127,7 +127,7 @@ OdometryResult LidarOdometry::register_scan(double stamp, const std::vector<Vec3
   const double sigma = adaptive_threshold();
   result.threshold = sigma;
   IcpResult icp = register_with(sigma);
-  AlignmentQuality quality = alignment_quality(source, map_, icp.T_map_sensor, config_.inlier_distance);
+  AlignmentQuality quality = alignment_quality(source, map_, icp.T_target_source, config_.inlier_distance);
   if (!icp.enough_correspondences || quality.inlier_fraction() < config_.min_inlier_fraction) {
     // Retry from the prediction with a wide threshold (a jump the motion model did not foresee),
     // then tighten it again so the final alignment is as precise as a normal one.
@@ -143,7 +143,7 @@ OdometryResult LidarOdometry::register_scan(double stamp, const std::vector<Vec3
       const IcpResult r = align_point_to_point(source, map_, guess, wide);
       iterations += r.iterations;
       ok = r.enough_correspondences;
-      guess = r.T_map_sensor;
+      guess = r.T_target_source;
     }
     if (ok) {
       IcpOptions fine;
@@ -153,7 +153,7 @@ OdometryResult LidarOdometry::register_scan(double stamp, const std::vector<Vec3
       fine.convergence = config_.convergence;
       icp = align_point_to_point(source, map_, guess, fine);
       icp.iterations += iterations;
-      quality = alignment_quality(source, map_, icp.T_map_sensor, config_.inlier_distance);
+      quality = alignment_quality(source, map_, icp.T_target_source, config_.inlier_distance);
       result.recovered = true;
     }
   }
@@ -168,7 +168,7 @@ OdometryResult LidarOdometry::register_scan(double stamp, const std::vector<Vec3
                             100.0 * quality.inlier_fraction(), config_.inlier_distance,
                             100.0 * config_.min_inlier_fraction));
 
-  result.T_odom_sensor = icp.T_map_sensor;
+  result.T_odom_sensor = icp.T_target_source;
   update_threshold(prediction.inverse() * result.T_odom_sensor);
   map_.update(frame, result.T_odom_sensor);
   accept(stamp, result.T_odom_sensor);

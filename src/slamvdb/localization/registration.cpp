@@ -60,7 +60,7 @@ NormalEquations build_system(const std::vector<Vec3d>& source, const VoxelHashMa
 IcpResult align_point_to_point(const std::vector<Vec3d>& source, const VoxelHashMap& target, const Pose& initial_guess,
                                const IcpOptions& options) {
   IcpResult result;
-  result.T_map_sensor = initial_guess;
+  result.T_target_source = initial_guess;
   result.enough_correspondences = true;
   if (source.empty() || target.empty()) {
     result.enough_correspondences = false;
@@ -68,7 +68,7 @@ IcpResult align_point_to_point(const std::vector<Vec3d>& source, const VoxelHash
   }
   for (int it = 0; it < options.max_iterations; ++it) {
     const NormalEquations eq =
-        build_system(source, target, result.T_map_sensor, options.max_correspondence_distance, options.kernel_scale);
+        build_system(source, target, result.T_target_source, options.max_correspondence_distance, options.kernel_scale);
     result.iterations = it + 1;
     result.correspondences = eq.count;
     if (eq.count < options.min_correspondences) {
@@ -80,7 +80,7 @@ IcpResult align_point_to_point(const std::vector<Vec3d>& source, const VoxelHash
       result.enough_correspondences = false;
       break;
     }
-    result.T_map_sensor = se3_exp(dx) * result.T_map_sensor;
+    result.T_target_source = se3_exp(dx) * result.T_target_source;
     if (dx.norm() < options.convergence) {
       result.converged = true;
       break;
@@ -90,7 +90,7 @@ IcpResult align_point_to_point(const std::vector<Vec3d>& source, const VoxelHash
 }
 
 AlignmentQuality alignment_quality(const std::vector<Vec3d>& source, const VoxelHashMap& target,
-                                   const Pose& T_map_sensor, double inlier_distance) {
+                                   const Pose& T_target_source, double inlier_distance) {
   struct Sum {
     std::size_t inliers = 0;
     double sq = 0.0;
@@ -102,7 +102,7 @@ AlignmentQuality alignment_quality(const std::vector<Vec3d>& source, const Voxel
         for (std::size_t i = range.begin(); i != range.end(); ++i) {
           Vec3d q;
           double d2;
-          if (target.nearest(T_map_sensor * source[i], q, d2) && d2 <= max2) {
+          if (target.nearest(T_target_source * source[i], q, d2) && d2 <= max2) {
             ++acc.inliers;
             acc.sq += d2;
           }

@@ -18,14 +18,14 @@ struct IcpOptions {
 };
 
 struct IcpResult {
-  Pose T_map_sensor = Pose::Identity();
+  Pose T_target_source = Pose::Identity();
   int iterations = 0;
   bool converged = false;               // the update fell below `convergence`
   std::size_t correspondences = 0;      // at the last iteration
   bool enough_correspondences = false;  // never fewer than min_correspondences
 };
 
-// Aligns `source` (sensor frame) to `target`, starting from `initial_guess` (T_map_sensor).
+// Aligns `source` (sensor frame) to `target`, starting from `initial_guess` (T_target_source).
 IcpResult align_point_to_point(const std::vector<Vec3d>& source, const VoxelHashMap& target, const Pose& initial_guess,
                                const IcpOptions& options);
 
@@ -35,8 +35,8 @@ struct AlignmentQuality {
   double inlier_rmse = 0.0;   // metres, over the inliers
   double inlier_fraction() const { return points ? static_cast<double>(inliers) / points : 0.0; }
 };
-// How well `source` at T_map_sensor lies on `target`.
+// How well `source` at T_target_source lies on `target`.
 AlignmentQuality alignment_quality(const std::vector<Vec3d>& source, const VoxelHashMap& target,
-                                   const Pose& T_map_sensor, double inlier_distance);
+                                   const Pose& T_target_source, double inlier_distance);
 
 }  // namespace slamvdb::localization

@@ -19,12 +19,12 @@ VoxelHashMap::VoxelHashMap(double voxel_size, double max_distance, int max_point
   min_spacing2_ = spacing * spacing;
 }
 
-void VoxelHashMap::update(const std::vector<Vec3d>& points_sensor, const Pose& T_map_sensor) {
+void VoxelHashMap::update(const std::vector<Vec3d>& points_sensor, const Pose& T_odom_sensor) {
   std::vector<Vec3d> points_map(points_sensor.size());
   std::transform(points_sensor.begin(), points_sensor.end(), points_map.begin(),
-                 [&](const Vec3d& p) { return T_map_sensor * p; });
+                 [&](const Vec3d& p) { return T_odom_sensor * p; });
   add_points(points_map);
-  remove_far_from(T_map_sensor.translation());
+  remove_far_from(T_odom_sensor.translation());
 }
 
 void VoxelHashMap::add_points(const std::vector<Vec3d>& points_map) {
@@ -47,7 +47,7 @@ void VoxelHashMap::remove_far_from(const Vec3d& origin) {
 }
 
 bool VoxelHashMap::nearest(const Vec3d& query, Vec3d& neighbour, double& squared_distance) const {
-  const VoxelKey c = voxel_of(query, voxel_size_);
+  const LocalVoxel c = voxel_of(query, voxel_size_);
   // Distance from the query to the lower / upper faces of its voxel, per axis: a neighbouring
   // voxel is searched only if its box can hold a point closer than the best found so far, and the
   // query's own voxel is searched first, so most of the 26 neighbours are skipped.
@@ -56,7 +56,7 @@ bool VoxelHashMap::nearest(const Vec3d& query, Vec3d& neighbour, double& squared
   double best = std::numeric_limits<double>::infinity();
   const Vec3d* best_point = nullptr;
   const auto search = [&](int dx, int dy, int dz) {
-    const auto it = voxels_.find(pack_voxel(VoxelKey(c.x() + dx, c.y() + dy, c.z() + dz)));
+    const auto it = voxels_.find(pack_voxel(LocalVoxel(c.x() + dx, c.y() + dy, c.z() + dz)));
     if (it == voxels_.end()) return;
     for (const Vec3d& q : it->second.points) {
       const double d2 = (q - query).squaredNorm();

@@ -13,13 +13,16 @@
 
 namespace slamvdb::localization {
 
-inline VoxelKey voxel_of(const Vec3d& p, double voxel_size) {
-  return VoxelKey(static_cast<int>(std::floor(p.x() / voxel_size)), static_cast<int>(std::floor(p.y() / voxel_size)),
+// A voxel of the tracker's local map (its own grid, unrelated to the semantic map's keys).
+using LocalVoxel = Eigen::Vector3i;
+
+inline LocalVoxel voxel_of(const Vec3d& p, double voxel_size) {
+  return LocalVoxel(static_cast<int>(std::floor(p.x() / voxel_size)), static_cast<int>(std::floor(p.y() / voxel_size)),
                   static_cast<int>(std::floor(p.z() / voxel_size)));
 }
 // 21 bits per axis (+-1 048 576 voxels: +-524 km at 0.5 m), enough for a local map in the
 // odometry frame; coordinates wrap beyond that, which only merges far-apart voxels' buckets.
-inline uint64_t pack_voxel(const VoxelKey& k) {
+inline uint64_t pack_voxel(const LocalVoxel& k) {
   constexpr uint64_t kMask = (1ULL << 21) - 1;
   return (static_cast<uint64_t>(static_cast<uint32_t>(k.x())) & kMask) |
          ((static_cast<uint64_t>(static_cast<uint32_t>(k.y())) & kMask) << 21) |
@@ -30,9 +33,9 @@ class VoxelHashMap {
  public:
   VoxelHashMap(double voxel_size, double max_distance, int max_points_per_voxel);
 
-  // Adds points given in the sensor frame at T_map_sensor, then drops voxels farther than
+  // Adds points given in the sensor frame at T_odom_sensor, then drops voxels farther than
   // max_distance from the sensor.
-  void update(const std::vector<Vec3d>& points_sensor, const Pose& T_map_sensor);
+  void update(const std::vector<Vec3d>& points_sensor, const Pose& T_odom_sensor);
   void add_points(const std::vector<Vec3d>& points_map);
   void remove_far_from(const Vec3d& origin);
   void clear() { voxels_.clear(); }

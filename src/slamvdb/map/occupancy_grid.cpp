@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 #include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
+#include <xmmintrin.h>
 
 #include <atomic>
 #include <limits>
@@ -65,6 +66,17 @@ void OccupancyGrid::set_occupied_bit(Block& b, int i, bool occupied) {
   occupied ? word.fetch_or(mask, std::memory_order_relaxed) : word.fetch_and(~mask, std::memory_order_relaxed);
   std::atomic_ref<int>(b.num_occupied).fetch_add(occupied ? 1 : -1, std::memory_order_relaxed);
 }
+
+namespace {
+// Population count without the POPCNT instruction (not in baseline x86-64; the compiler's builtin
+// then calls a slow library routine).
+inline int popcount64(uint64_t x) {
+  x = x - ((x >> 1) & 0x5555555555555555ULL);
+  x = (x & 0x3333333333333333ULL) + ((x >> 2) & 0x3333333333333333ULL);
+  x = (x + (x >> 4)) & 0x0f0f0f0f0f0f0f0fULL;
+  return static_cast<int>((x * 0x0101010101010101ULL) >> 56);
+}
+}  // namespace
 
 // Called only by the thread that claimed the voxel's stamp for this scan, so the cell is ours.
 void OccupancyGrid::update_voxel(Block& b, const VoxelKey& key, int i, float delta, ScanContext& ctx) {
@@ -241,18 +253,31 @@ void OccupancyGrid::set_log_odds(const VoxelKey& k, float value) {
   if (occ != b.occupied(i)) set_occupied_bit(b, i, occ);
 }
 
-void OccupancyGrid::set_block(const BlockKey& key, const float* log_odds) {
-  Block& b = block_at(key);
-  b.occupied_bits.fill(0);
-  b.num_occupied = 0;
-  for (int i = 0; i < kBlockVoxels; ++i) {
-    const float v = log_odds[i];
-    b.cells[i] = {v, 0};
-    if (!std::isnan(v) && v >= params_.occupied_threshold) {
-      b.occupied_bits[i >> 6] |= uint64_t{1} << (i & 63);
-      ++b.num_occupied;
-    }
+int OccupancyGrid::set_block(const BlockKey& key, const float* log_odds) {
+  auto& slot = blocks_[key];
+  if (!slot) {  // every cell is written below: no need to mark them unknown first
+    slot = std::make_unique<Block>(Block::Uninitialized{});
+    regions_[region_of(key)].emplace_back(key, slot.get());
   }
+  Block& b = *slot;
+  for (int i = 0; i < kBlockVoxels; ++i) b.cells[i] = {log_odds[i], 0};
+  // Occupied and known bits four voxels at a time (SSE2, every x86-64): a comparison with NaN is
+  // false, so unknown voxels are neither occupied nor known.
+  const __m128 threshold = _mm_set1_ps(params_.occupied_threshold);
+  int occupied = 0, known = 0;
+  for (int w = 0; w < kBlockVoxels / 64; ++w) {
+    uint64_t bits = 0, known_bits = 0;
+    for (int j = 0; j < 64; j += 4) {
+      const __m128 v = _mm_loadu_ps(log_odds + 64 * w + j);
+      bits |= static_cast<uint64_t>(_mm_movemask_ps(_mm_cmpge_ps(v, threshold))) << j;
+      known_bits |= static_cast<uint64_t>(_mm_movemask_ps(_mm_cmpord_ps(v, v))) << j;
+    }
+    b.occupied_bits[w] = bits;
+    occupied += popcount64(bits);
+    known += popcount64(known_bits);
+  }
+  b.num_occupied = occupied;
+  return known;
 }
 
 std::size_t OccupancyGrid::num_known_voxels() const {

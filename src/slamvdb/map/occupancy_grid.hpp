@@ -53,7 +53,9 @@ class OccupancyGrid {
     uint32_t stamp;  // last scan that updated the voxel (one update per scan)
   };
   struct Block {
-    Block();
+    Block();  // every voxel unknown
+    struct Uninitialized {};
+    explicit Block(Uninitialized) {}
     bool occupied(int i) const { return (occupied_bits[i >> 6] >> (i & 63)) & 1u; }
     std::array<Cell, kBlockVoxels> cells;
     std::array<uint64_t, kBlockVoxels / 64> occupied_bits{};  // written atomically during a scan
@@ -81,8 +83,9 @@ class OccupancyGrid {
   bool is_occupied(const VoxelKey& k) const;
   // Sets a voxel's log-odds directly (merging, tests); NaN makes it unknown again.
   void set_log_odds(const VoxelKey& k, float value);
-  // Sets a whole block (map loading): kBlockVoxels log-odds, NaN for unknown.
-  void set_block(const BlockKey& key, const float* log_odds);
+  // Sets a whole block (map loading): kBlockVoxels log-odds, NaN for unknown. Returns how many of
+  // them are known.
+  int set_block(const BlockKey& key, const float* log_odds);
 
   std::size_t num_blocks() const { return blocks_.size(); }
   std::size_t num_known_voxels() const;

@@ -54,6 +54,17 @@ uint32_t SemanticMap::slot_of(int id) const {
   return it->second;
 }
 
+// A new submap's frame: axes parallel to the world's, origin at the voxel corner nearest to the
+// sensor. Any frame would do for a free-floating submap; this one puts every uncorrected submap on
+// one common grid, so index reads, world occupancy and merges need no resampling until a loop
+// closure actually rotates a submap (and then only by the correction).
+Pose SemanticMap::anchor_for(const Pose& T_world_sensor) const {
+  const double vs = params_.occupancy.voxel_size;
+  Pose T = Pose::Identity();
+  T.translation() = (T_world_sensor.translation() / vs).array().round().matrix() * vs;
+  return T;
+}
+
 int SemanticMap::start_submap_locked(const Pose& T_world_submap) {
   check_rigid(next_id_, T_world_submap);
   if (active_slot_) finish_active_locked();
@@ -112,7 +123,7 @@ ScanIntegrationStats SemanticMap::integrate_scan(double stamp, const std::vector
     const Vec3d position = T_world_sensor.translation();
     if (active() && last_scan_position_) active()->info_.path_length += (position - *last_scan_position_).norm();
     if (!active() || (params_.submap_length > 0 && active()->info_.path_length >= params_.submap_length))
-      start_submap_locked(T_world_sensor);
+      start_submap_locked(anchor_for(T_world_sensor));
     last_scan_position_ = position;
     a = active();
     a->info_.time_range.extend(stamp);

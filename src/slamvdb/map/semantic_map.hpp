@@ -50,8 +50,8 @@ class SemanticMap {
   void set_info(MapInfo info) { info_ = std::move(info); }
 
   // ---- mapping (one writer thread) ----
-  // Integrates a scan into the active submap, first starting a new submap at T_world_sensor when
-  // there is none or the path since the active one started exceeds params.submap_length.
+  // Integrates a scan into the active submap, first starting a new submap (anchor_for) when there
+  // is none or the path since the active one started exceeds params.submap_length.
   ScanIntegrationStats integrate_scan(double stamp, const std::vector<Vec3f>& points_sensor, const Pose& T_world_sensor);
   // Runs f on the active submap's voxels (e.g. to fuse a feature map) under its write lock, with
   // the finished submaps (read-only, e.g. as occluders) held still meanwhile; then brings the
@@ -65,6 +65,9 @@ class SemanticMap {
   // Stores the active submap in its storage precision; it then changes only by pose or merge.
   void finish_active_submap();
   std::optional<int> active_submap_id() const;
+  // The anchor a submap started at this sensor pose gets: the world's axes, the voxel corner
+  // nearest to the sensor.
+  Pose anchor_for(const Pose& T_world_sensor) const;
 
   // ---- corrections (any thread) ----
   // Sets corrected anchor poses; every index read reflects them at once. Throws Error for an

@@ -26,6 +26,12 @@ VoxelMap::VoxelMap(const MapParams& params) : VoxelMap(params, params.semantic.p
 VoxelMap::VoxelMap(const MapParams& params, EmbeddingPrecision precision)
     : params_(params), occupancy_(params.occupancy), semantics_(with_precision(params.semantic, precision)) {}
 
+VoxelMap::VoxelMap(const MapParams& params, OccupancyGrid occupancy, SemanticLayer semantics)
+    : params_(params), occupancy_(std::move(occupancy)), semantics_(std::move(semantics)) {
+  if (occupancy_.voxel_size() != params.occupancy.voxel_size || semantics_.dim() != params.semantic.dim)
+    throw Error("the parts of a voxel map have different parameters");
+}
+
 ScanIntegrationStats VoxelMap::integrate_scan(const std::vector<Vec3f>& points_sensor, const Pose& T_submap_sensor) {
   freed_.clear();
   const ScanIntegrationStats stats = occupancy_.integrate_scan(points_sensor, T_submap_sensor, &freed_);

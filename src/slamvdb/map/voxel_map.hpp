@@ -10,8 +10,8 @@ struct MapParams {
   OccupancyParams occupancy;
   SemanticParams semantic;
   // A new submap starts when the path driven since the active one started exceeds this (metres);
-  // 0: one submap for the whole run. Why 25 m: see README ("Submaps").
-  double submap_length = 25.0;
+  // 0: one submap for the whole run. Why 50 m: see README ("Submaps and the global index").
+  double submap_length = 50.0;
   // Cell edge of the global index (metres); 0: the voxel size.
   double index_cell_size = 0.0;
   double index_cell() const { return index_cell_size > 0 ? index_cell_size : occupancy.voxel_size; }
@@ -23,6 +23,8 @@ class VoxelMap {
   // `precision` overrides params.semantic.precision (the active submap accumulates in fp32).
   explicit VoxelMap(const MapParams& params = {});
   VoxelMap(const MapParams& params, EmbeddingPrecision precision);
+  // From parts read separately (map loading); their parameters must be the map's.
+  VoxelMap(const MapParams& params, OccupancyGrid occupancy, SemanticLayer semantics);
 
   // Occupancy update; a voxel that turns free loses its semantic entry (it no longer holds a surface).
   ScanIntegrationStats integrate_scan(const std::vector<Vec3f>& points_sensor, const Pose& T_submap_sensor);

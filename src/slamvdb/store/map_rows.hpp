@@ -35,8 +35,12 @@ struct PayloadBytes {
   uint64_t occupancy = 0, semantics = 0;
 };
 PayloadBytes write_submap_voxels(Database& db, const Submap& submap, EmbeddingPrecision precision);
-// Reads and validates one submap's rows into a VoxelMap (in the file's storage precision).
-VoxelMap read_submap_voxels(Database& db, int format_version, const SubmapSummary& summary, const MapParams& params);
+// Read and validate one submap's rows (semantics in the file's storage precision). The two halves
+// are independent, so a loader may read them on two threads (each with its own connection).
+OccupancyGrid read_submap_occupancy(Database& db, int format_version, const SubmapSummary& summary,
+                                    const MapParams& params);
+SemanticLayer read_submap_semantics(Database& db, int format_version, const SubmapSummary& summary,
+                                    const MapParams& params);
 // Rows that name a submap the submaps table does not have.
 void check_no_orphan_rows(Database& db);
 
