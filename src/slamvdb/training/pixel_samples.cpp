@@ -39,8 +39,9 @@ void PixelSamples::decode(std::size_t first, std::size_t count, float* out) cons
   for (std::size_t i = 0; i < count * dim_; ++i) out[i] = half_to_float(in[i]);
 }
 
-void PixelSamples::gather(std::span<const std::size_t> rows, float* out) const {
-  for (std::size_t r = 0; r < rows.size(); ++r) decode(rows[r], 1, out + r * dim_);
+void PixelSamples::gather_half(std::span<const std::size_t> rows, uint16_t* out) const {
+  for (std::size_t r = 0; r < rows.size(); ++r)
+    std::copy_n(features_.data() + rows[r] * dim_, dim_, out + r * dim_);
 }
 
 bool PixelSamples::append(const float* feature, int16_t target) {

@@ -27,8 +27,10 @@ class PixelSamples {
   std::span<const int16_t> targets() const { return targets_; }
   // Rows [first, first + count) decoded to fp32 into out (count x dim).
   void decode(std::size_t first, std::size_t count, float* out) const;
-  // The rows listed in `rows`, decoded into out (rows.size() x dim).
-  void gather(std::span<const std::size_t> rows, float* out) const;
+  // The fp16 rows themselves (size() x dim), and the listed rows copied into out, for callers with
+  // a vectorised conversion (torch).
+  const uint16_t* half_data() const { return features_.data(); }
+  void gather_half(std::span<const std::size_t> rows, uint16_t* out) const;
   // Appends `feature` normalised; returns false (and keeps nothing) for a zero or non-finite vector.
   bool append(const float* feature, int16_t target);
   void reserve(std::size_t rows);
