@@ -161,4 +161,9 @@ std::vector<QueryMatch> QueryClassifier::classify(std::span<const float> embeddi
   return out;
 }
 
+std::vector<QueryMatch> classify_embeddings(std::span<const float> embeddings, const QuerySet& queries,
+                                            const ClassifyOptions& options) {
+  return QueryClassifier(queries, options).classify(embeddings);
+}
+
 }  // namespace slamvdb

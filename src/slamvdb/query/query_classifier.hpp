@@ -55,4 +55,9 @@ class QueryClassifier {
   bool use_avx2_ = false;
 };
 
+// The same as one call: QueryClassifier(queries, options).classify(...). Callers that classify many
+// chunks should keep a QueryClassifier (it normalises the queries once).
+std::vector<QueryMatch> classify_embeddings(std::span<const float> embeddings, const QuerySet& queries,
+                                            const ClassifyOptions& options = {});
+
 }  // namespace slamvdb

@@ -100,7 +100,7 @@ TEST(QueryClassifier, VoidTakesTheSecondBestClass) {
   q.vectors = QueryMatrix::Identity(3, 3);
   q.void_classes = {2};
   const std::vector<float> canopy = {0.2f, 0.5f, 0.9f};  // looks most like sky seen through leaves
-  const QueryMatch ruled = QueryClassifier(q).classify(canopy)[0];
+  const QueryMatch ruled = classify_embeddings(canopy, q)[0];
   EXPECT_EQ(ruled.class_index, 1);
   const float norm = std::sqrt(0.04f + 0.25f + 0.81f);
   EXPECT_NEAR(ruled.score, 0.5f / norm, 1e-6f);
