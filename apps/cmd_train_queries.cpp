@@ -21,7 +21,7 @@ namespace {
 
 #if SLAMVDB_WITH_TRAINING
 struct Options {
-  std::string dataset, output, ontology = "rellis3d-coarse", sampling = "uniform", init = "auto";
+  std::string dataset, output, ontology = "rellis3d-coarse", sampling = "balanced", init = "auto";
   FeatureOptions features;
   TrainQueriesOptions train;
   double max_memory_gb = 8.0;
@@ -132,8 +132,8 @@ void add(CLI::App& root) {
       ->capture_default_str()
       ->check(CLI::PositiveNumber);
   cmd->add_option("--sampling", opt->sampling,
-                  "Training pixel sampling: 'uniform' (the paper's loss in expectation) or 'balanced' (even share per "
-                  "class in each image: more pixels of rare classes)")
+                  "Training pixel sampling: 'balanced' (even share per class in each image: more pixels of rare "
+                  "classes, better rare-class recall) or 'uniform' (the paper's loss in expectation)")
       ->capture_default_str()
       ->check(CLI::IsMember({"uniform", "balanced"}));
   cmd->add_option("--init", opt->init,

@@ -32,7 +32,10 @@ enum class QueryInit { kAuto, kText, kClassMean };
 struct TrainQueriesOptions {
   TrainerOptions trainer;
   std::size_t pixels_per_image = 1024;
-  PixelSampling sampling = PixelSampling::kUniform;
+  // Class-balanced by default: on an independent SIMULATED test sequence it kept the overall
+  // accuracy (96.43% vs 96.37% uniform) and raised the rare `active` class's recall from 85.9% to
+  // 95.1% (README, "Query training"). kUniform is the paper's loss in expectation.
+  PixelSampling sampling = PixelSampling::kClassBalanced;
   double val_fraction = 0.1;
   QueryInit init = QueryInit::kAuto;
 };
