@@ -1,10 +1,12 @@
 // Classifying voxel embeddings against a query set (paper section 6.3: 6 coarse terrain classes,
-// 512-d LSeg embeddings), 1 M rows per iteration, all cores (TBB).
+// 512-d LSeg embeddings), 1 M rows per iteration.
 //   Arg 0: kernel, 0 = chosen at run time (AVX2 + FMA here), 1 = portable Eigen kernel.
+//   Arg 1: threads (TBB).
 //   BM_QueryClassifyStream: 1 M x 512 fp32 rows from one 2 GB buffer (bound by memory bandwidth).
 //   BM_QueryClassifyResident: 1 M rows as 4096-row chunks whose data sit in cache, as when the map
 //     side decodes its fp16 chunks into an fp32 buffer and classifies each chunk.
 #include <benchmark/benchmark.h>
+#include <tbb/global_control.h>
 #include <tbb/parallel_for.h>
 
 #include <random>
@@ -43,6 +45,7 @@ std::vector<float> random_rows(std::size_t rows) {
 }
 
 void BM_QueryClassifyStream(benchmark::State& state) {
+  tbb::global_control threads(tbb::global_control::max_allowed_parallelism, state.range(1));
   const QueryClassifier classifier(six_queries(), {.portable_kernel = state.range(0) == 1});
   static const std::vector<float> x = random_rows(kRows);  // 2 GB, shared by both kernels
   std::vector<QueryMatch> out(kRows);
@@ -54,9 +57,10 @@ void BM_QueryClassifyStream(benchmark::State& state) {
   state.SetBytesProcessed(static_cast<int64_t>(state.iterations() * kRows * kDim * sizeof(float)));
   state.SetLabel(classifier.uses_avx2() ? "avx2+fma" : "eigen");
 }
-BENCHMARK(BM_QueryClassifyStream)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond)->UseRealTime()->MinTime(2.0);
+BENCHMARK(BM_QueryClassifyStream)->ArgsProduct({{0, 1}, {1, 2}})->Unit(benchmark::kMillisecond)->UseRealTime()->MinTime(2.0);
 
 void BM_QueryClassifyResident(benchmark::State& state) {
+  tbb::global_control threads(tbb::global_control::max_allowed_parallelism, state.range(1));
   const QueryClassifier classifier(six_queries(), {.portable_kernel = state.range(0) == 1});
   const std::vector<float> chunk = random_rows(kChunkRows);  // 8 MB: stays in L3
   std::vector<QueryMatch> out(kRows);
@@ -69,6 +73,6 @@ void BM_QueryClassifyResident(benchmark::State& state) {
   state.SetItemsProcessed(static_cast<int64_t>(state.iterations() * kRows));
   state.SetLabel(classifier.uses_avx2() ? "avx2+fma" : "eigen");
 }
-BENCHMARK(BM_QueryClassifyResident)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond)->UseRealTime()->MinTime(2.0);
+BENCHMARK(BM_QueryClassifyResident)->ArgsProduct({{0, 1}, {1, 2}})->Unit(benchmark::kMillisecond)->UseRealTime()->MinTime(2.0);
 
 }  // namespace
