@@ -27,7 +27,7 @@ namespace slamvdb::cli {
 
 struct FeatureOptions {
   std::string features = "simulated";
-  std::string model, text_model;
+  std::string model, text_model, precomputed_model_id;
   int threads = -1;
   int dim = 512;
   std::string feature_size = "192x128";
@@ -50,6 +50,9 @@ inline void add_feature_options(CLI::App* cmd, FeatureOptions& o, bool with_text
                     "TorchScript text encoder (CLIP) for the initial queries; SIMULATED features use the simulated "
                     "text encoder")
         ->check(CLI::ExistingFile);
+  cmd->add_option("--features-model-id", o.precomputed_model_id,
+                  "With --features precomputed: the model id of the network that wrote the .npy files, so that "
+                  "queries and maps from different sequences share it (default: precomputed:<dataset>)");
   cmd->add_option("--threads", o.threads, "Network threads (-1: the manifest's setting)")->capture_default_str();
   cmd->add_option("--dim", o.dim, "Simulated embedding dimension")->capture_default_str()->check(CLI::Range(1, 65536));
   cmd->add_option("--feature-size", o.feature_size, "Simulated feature map size WIDTHxHEIGHT")->capture_default_str();
@@ -74,6 +77,8 @@ inline void check_feature_options(const FeatureOptions& o) {
     throw CLI::ValidationError("--features model", "needs --model MODEL.pt (a TorchScript dense encoder)");
   if (!o.model.empty() && o.features != "model")
     throw CLI::ValidationError("--model", "is only used with --features model");
+  if (!o.precomputed_model_id.empty() && o.features != "precomputed")
+    throw CLI::ValidationError("--features-model-id", "is only used with --features precomputed");
   static const std::regex kSize(R"((\d{1,5})[xX](\d{1,5}))");
   if (!std::regex_match(o.feature_size, kSize) || o.feature_size.starts_with('0'))
     throw CLI::ValidationError("--feature-size", fmt::format("'{}' is not WIDTHxHEIGHT", o.feature_size));
@@ -108,7 +113,9 @@ inline std::unique_ptr<FeatureSource> make_feature_source(const FeatureOptions& 
   }
   if (o.features == "precomputed") {
     for (const auto& img : seq.images)
-      if (!img.features.empty()) return std::make_unique<NpyFeatureSource>("precomputed:" + seq.root.string());
+      if (!img.features.empty())
+        return std::make_unique<NpyFeatureSource>(
+            o.precomputed_model_id.empty() ? "precomputed:" + seq.root.string() : o.precomputed_model_id);
     throw Error(fmt::format("--features precomputed: no features/<image>.npy files in {}", seq.root.string()));
   }
   const SimulatedEncoderConfig sim = simulated_config(o);
