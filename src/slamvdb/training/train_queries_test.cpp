@@ -11,6 +11,7 @@
 #include <fstream>
 
 #include "slamvdb/inference/simulated_encoders.hpp"
+#include "slamvdb/io/npy.hpp"
 #include "slamvdb/io/sequence_reader.hpp"
 #include "slamvdb/synth/sequence_writer.hpp"
 #include "slamvdb/testing/error_of.hpp"
@@ -180,6 +181,23 @@ labels:
   EXPECT_NE(error_of([&] { train_queries(sequence_->images, source, partial, nullptr, options(), report); })
                 .find("is not in ontology 'partial'"),
             std::string::npos);
+}
+
+// Precomputed .npy feature maps (as a network run offline would leave them) train the same way.
+TEST_F(TrainQueriesTest, PrecomputedFeatureFilesTrainToo) {
+  testing::TempDir npy;
+  std::vector<ImageRecord> images = sequence_->images;
+  auto simulated = features();
+  for (auto& image : images) {
+    image.features = npy.path / (image.labels.stem().string() + ".npy");
+    write_feature_npy(image.features, simulated.features_for(image));
+  }
+  NpyFeatureSource files("lseg-offline");
+  TrainQueriesReport report;
+  const QuerySet q =
+      train_queries(images, files, Ontology::builtin("rellis3d-coarse"), nullptr, options(), report);  // class means
+  EXPECT_EQ(q.model_id, "lseg-offline");
+  EXPECT_GT(*report.epochs.back().val_accuracy, 0.85);
 }
 
 struct CliRun {
