@@ -143,7 +143,7 @@ QuerySet load_query_set(const fs::path& file) {
   } catch (const json::parse_error& e) {
     throw Error(fmt::format("{} is not a JSON query set (byte {}: {})", where, e.byte, e.what()));
   }
-  if (!doc.is_object() || doc.value("format", "") != kFormat)
+  if (!doc.is_object() || !doc.contains("format") || !doc["format"].is_string() || doc["format"] != kFormat)
     throw Error(fmt::format("{} is not a slamvdb query set (no \"format\": \"{}\")", where, kFormat));
   QuerySet q;
   try {

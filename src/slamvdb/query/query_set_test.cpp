@@ -81,6 +81,8 @@ TEST(QuerySet, BadFilesAreClearErrors) {
   EXPECT_NE(error_of([&] { load_query_set(f); }).find("is not a JSON query set"), std::string::npos);
   write(f, "{\"format\": \"something-else\"}");
   EXPECT_NE(error_of([&] { load_query_set(f); }).find("is not a slamvdb query set"), std::string::npos);
+  write(f, "{\"format\": 3}");
+  EXPECT_NE(error_of([&] { load_query_set(f); }).find("is not a slamvdb query set"), std::string::npos);
 
   save_query_set(f, random_set(2, 3, 2));
   std::ifstream in(f);
