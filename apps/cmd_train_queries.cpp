@@ -55,9 +55,9 @@ void run(Options opt) {
   std::unique_ptr<TextEncoder> text;
   if (opt.train.init != QueryInit::kClassMean) text = make_text_encoder(opt.features);
   fmt::print("train-queries: {} labelled images of {} ({}), ontology {} ({} classes), {} pixels per image ({}), "
-             "samples ~{:.2f} GB\n",
+             "samples ~{:.0f} MB\n",
              images.size(), seq.root.string(), seq.layout, ontology.name(), ontology.num_classes(),
-             opt.train.pixels_per_image, opt.sampling, gb);
+             opt.train.pixels_per_image, opt.sampling, gb * 1e3);
   std::fflush(stdout);
 
   std::optional<ProgressBar> image_bar, step_bar;
@@ -75,7 +75,9 @@ void run(Options opt) {
     if (step == steps) step_bar->finish();
   };
   callbacks.epoch_done = [&](const EpochReport& r) {
-    if (r.epoch == 0) {
+    if (r.epoch == 0 && !r.val_loss) {
+      fmt::print("no validation images (--val-fraction 0): only the training loss is reported\n");
+    } else if (r.epoch == 0) {
       fmt::print("initial queries: validation loss {}, pixel accuracy {}, mIoU {}\n",
                  r.val_loss ? fmt::format("{:.4f}", *r.val_loss) : "-", pct(r.val_accuracy), pct(r.val_miou));
     } else {
@@ -118,19 +120,19 @@ void add(CLI::App& root) {
   cmd->add_option("--ontology", opt->ontology, "Ontology YAML file, or a built-in one: rellis3d-coarse, rellis3d-fine")
       ->capture_default_str();
   auto& t = opt->train.trainer;
-  cmd->add_option("--epochs", t.epochs, "Passes over the training pixels")->capture_default_str()->check(CLI::NonNegativeNumber);
-  cmd->add_option("--batch-size", t.batch_size, "Pixels per optimiser step")->capture_default_str()->check(CLI::PositiveNumber);
-  cmd->add_option("--lr", t.learning_rate, "Adam learning rate")->capture_default_str()->check(CLI::PositiveNumber);
+  cmd->add_option("--epochs", t.epochs, "Passes over the training pixels")->capture_default_str()->check(kNonNegative);
+  cmd->add_option("--batch-size", t.batch_size, "Pixels per optimiser step")->capture_default_str()->check(kPositive);
+  cmd->add_option("--lr", t.learning_rate, "Adam learning rate")->capture_default_str()->check(kPositive);
   cmd->add_option("--temperature", t.temperature, "Softmax temperature: logits = cosine / T")
       ->capture_default_str()
-      ->check(CLI::PositiveNumber);
+      ->check(kPositive);
   cmd->add_option("--seed", t.seed, "Seed for pixel sampling and shuffling (same seed, same vectors)")->capture_default_str();
   cmd->add_option("--val-fraction", opt->train.val_fraction, "Share of the images (the last ones) used for validation")
       ->capture_default_str()
       ->check(CLI::Range(0.0, 0.95));
   cmd->add_option("--pixels-per-image", opt->train.pixels_per_image, "Labelled pixels sampled per image")
       ->capture_default_str()
-      ->check(CLI::PositiveNumber);
+      ->check(kPositive);
   cmd->add_option("--sampling", opt->sampling,
                   "Training pixel sampling: 'balanced' (even share per class in each image: more pixels of rare "
                   "classes, better rare-class recall) or 'uniform' (the paper's loss in expectation)")
@@ -143,7 +145,7 @@ void add(CLI::App& root) {
       ->check(CLI::IsMember({"auto", "text", "mean"}));
   cmd->add_option("--max-memory", opt->max_memory_gb, "Refuse to start if the sampled pixels would take more GB")
       ->capture_default_str()
-      ->check(CLI::PositiveNumber);
+      ->check(kPositive);
   add_feature_options(cmd, opt->features, true);
   cmd->callback([opt] { run(*opt); });
 #else

@@ -25,6 +25,21 @@
 
 namespace slamvdb::cli {
 
+// Readable range checks (CLI11's PositiveNumber prints the largest double as the bound).
+inline CLI::Validator at_least(double low, bool inclusive) {
+  return CLI::Validator(
+      [low, inclusive](std::string& text) -> std::string {
+        double v = 0;
+        const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), v);
+        if (ec != std::errc() || end != text.data() + text.size()) return "'" + text + "' is not a number";
+        if (!(inclusive ? v >= low : v > low)) return fmt::format("must be {} {}, got {}", inclusive ? ">=" : ">", low, text);
+        return {};
+      },
+      inclusive ? fmt::format(">= {}", low) : fmt::format("> {}", low));
+}
+inline const CLI::Validator kPositive = at_least(0, false);
+inline const CLI::Validator kNonNegative = at_least(0, true);
+
 struct FeatureOptions {
   std::string features = "simulated";
   std::string model, text_model, precomputed_model_id;
@@ -63,7 +78,7 @@ inline void add_feature_options(CLI::App* cmd, FeatureOptions& o, bool with_text
                     "g x other classes' prototypes into each name's embedding, as CLIP's text embeddings are off "
                     "(paper Figure 6.3)")
         ->capture_default_str()
-        ->check(CLI::NonNegativeNumber);
+        ->check(kNonNegative);
   auto* images = cmd->add_option("--images", o.images,
                                  "Use the labelled images FIRST:LAST (0-based, inclusive, in time order)");
   cmd->add_option("--max-images", o.max_images, "Use only the first N labelled images (0: all)")
