@@ -7,18 +7,23 @@ enum Coarse { kSmooth = 0, kRough, kBumpy, kObstacle, kActive, kVoid };
 }
 
 const std::vector<FineClass>& rellis_classes() {
-  // Colours are RGB (the dataset's ontology file lists them as BGR).
+  // Colours are RGB and equal the numbers of the dataset's ontology file (rellis.yaml,
+  // `color_map`). That file's "# bgr" comment is a leftover of the SemanticKITTI configuration it
+  // was copied from: the dataset's own tools (utils/label_convert.py, utils/label2color.ipynb) write
+  // these numbers as RGB, which gives sky blue, dirt and mud brown and puddles light cyan. Reading
+  // them as BGR (as this table once did) paints the sky red. Checked by ontology_test.cpp against
+  // the fixture's file.
   static const std::vector<FineClass> classes = {
-      {0, "void", {0, 0, 0}, kVoid},           {1, "dirt", {20, 64, 108}, kRough},
-      {3, "grass", {0, 102, 0}, kRough},       {4, "tree", {0, 255, 0}, kObstacle},
-      {5, "pole", {153, 153, 0}, kObstacle},   {6, "water", {255, 128, 0}, kObstacle},
-      {7, "sky", {255, 0, 0}, kVoid},          {8, "vehicle", {0, 255, 255}, kActive},
-      {9, "object", {127, 0, 255}, kObstacle}, {10, "asphalt", {64, 64, 64}, kSmooth},
-      {12, "building", {0, 0, 255}, kObstacle},{15, "log", {0, 0, 102}, kObstacle},
-      {17, "person", {255, 153, 204}, kActive},{18, "fence", {204, 0, 102}, kObstacle},
-      {19, "bush", {204, 153, 255}, kObstacle},{23, "concrete", {170, 170, 170}, kSmooth},
-      {27, "barrier", {255, 121, 41}, kObstacle},{31, "puddle", {239, 255, 134}, kBumpy},
-      {33, "mud", {34, 66, 99}, kBumpy},       {34, "rubble", {138, 22, 110}, kBumpy},
+      {0, "void", {0, 0, 0}, kVoid},             {1, "dirt", {108, 64, 20}, kRough},
+      {3, "grass", {0, 102, 0}, kRough},         {4, "tree", {0, 255, 0}, kObstacle},
+      {5, "pole", {0, 153, 153}, kObstacle},     {6, "water", {0, 128, 255}, kObstacle},
+      {7, "sky", {0, 0, 255}, kVoid},            {8, "vehicle", {255, 255, 0}, kActive},
+      {9, "object", {255, 0, 127}, kObstacle},   {10, "asphalt", {64, 64, 64}, kSmooth},
+      {12, "building", {255, 0, 0}, kObstacle},  {15, "log", {102, 0, 0}, kObstacle},
+      {17, "person", {204, 153, 255}, kActive},  {18, "fence", {102, 0, 204}, kObstacle},
+      {19, "bush", {255, 153, 204}, kObstacle},  {23, "concrete", {170, 170, 170}, kSmooth},
+      {27, "barrier", {41, 121, 255}, kObstacle},{31, "puddle", {134, 255, 239}, kBumpy},
+      {33, "mud", {99, 66, 34}, kBumpy},         {34, "rubble", {110, 22, 138}, kBumpy},
   };
   return classes;
 }

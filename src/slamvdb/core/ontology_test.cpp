@@ -8,10 +8,10 @@ namespace {
 
 TEST(Ontology, BuiltInTableEqualsTheOntologyFile) {
   const YAML::Node doc = YAML::LoadFile(std::string(SLAMVDB_SOURCE_DIR) + "/data/ontology/rellis3d_coarse.yaml");
-  const auto coarse = doc["coarse"].as<std::vector<std::string>>();
+  const YAML::Node coarse = doc["classes"];
   ASSERT_EQ(coarse.size(), kCoarseClasses.size());
-  for (std::size_t i = 0; i < coarse.size(); ++i) EXPECT_EQ(coarse[i], kCoarseClasses[i]);
-  const YAML::Node classes = doc["classes"];
+  for (std::size_t i = 0; i < coarse.size(); ++i) EXPECT_EQ(coarse[i]["name"].as<std::string>(), kCoarseClasses[i]);
+  const YAML::Node classes = doc["labels"];
   ASSERT_EQ(classes.size(), rellis_classes().size());
   for (std::size_t i = 0; i < classes.size(); ++i) {
     const FineClass& c = rellis_classes()[i];
@@ -19,7 +19,7 @@ TEST(Ontology, BuiltInTableEqualsTheOntologyFile) {
     EXPECT_EQ(classes[i]["name"].as<std::string>(), c.name);
     const auto rgb = classes[i]["rgb"].as<std::vector<int>>();
     EXPECT_EQ(rgb, (std::vector<int>{c.rgb[0], c.rgb[1], c.rgb[2]})) << c.name;
-    EXPECT_EQ(classes[i]["coarse"].as<std::string>(), kCoarseClasses[c.coarse]) << c.name;
+    EXPECT_EQ(classes[i]["class"].as<std::string>(), kCoarseClasses[c.coarse]) << c.name;
   }
 }
 

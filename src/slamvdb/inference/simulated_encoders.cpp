@@ -71,6 +71,8 @@ void validate(const SimulatedEncoderConfig& c) {
   if (!(c.noise_sigma >= 0.f) || !std::isfinite(c.noise_sigma))
     fail(fmt::format("noise_sigma must be >= 0, got {}", c.noise_sigma));
   if (!(c.blur >= 0.f) || !std::isfinite(c.blur)) fail(fmt::format("blur must be >= 0, got {}", c.blur));
+  if (!(c.text_gap >= 0.f) || !std::isfinite(c.text_gap))
+    fail(fmt::format("text_gap must be >= 0, got {}", c.text_gap));
 }
 
 PrototypeMatrix simulated_class_prototypes(const SimulatedEncoderConfig& config) {
@@ -204,14 +206,34 @@ FeatureMap SimulatedDenseEncoder::encode(const ImageFrame& frame) {
 SimulatedTextEncoder::SimulatedTextEncoder(SimulatedEncoderConfig config) : config_(config) {
   const PrototypeMatrix prototypes = simulated_class_prototypes(config_);
   const auto& classes = rellis_classes();
-  for (std::size_t i = 0; i < classes.size(); ++i)
-    names_.emplace_back(std::string(classes[i].name), prototypes.row(i).transpose());
+  // The text-image gap: ideal + gap * a mix of the prototypes of classes outside `members`, with
+  // weights u^4 (u uniform) so that each name leans on a few other classes. Keyed by `key`.
+  const auto with_gap = [&](Eigen::VectorXf ideal, const std::vector<bool>& members, uint64_t key) {
+    if (config_.text_gap <= 0.f) return ideal;
+    Rng rng{mix(config_.seed, 0x7E47'0000'0000ull + key)};
+    Eigen::VectorXf others = Eigen::VectorXf::Zero(config_.dim);
+    double total = 0;
+    for (std::size_t j = 0; j < classes.size(); ++j) {
+      const double u = rng.uniform(), w = u * u * u * u;
+      if (members[j]) continue;
+      others += static_cast<float>(w) * prototypes.row(j).transpose();
+      total += w;
+    }
+    if (total > 0) ideal += (config_.text_gap / static_cast<float>(total)) * others;
+    return Eigen::VectorXf(ideal.normalized());
+  };
+  for (std::size_t i = 0; i < classes.size(); ++i) {
+    std::vector<bool> members(classes.size(), false);
+    members[i] = true;
+    names_.emplace_back(std::string(classes[i].name), with_gap(prototypes.row(i).transpose(), members, classes[i].id));
+  }
   for (int k = 0; k < static_cast<int>(kCoarseClasses.size()); ++k) {
     if (k == kVoidCoarse) continue;  // "void" names the fine class
     Eigen::VectorXf sum = Eigen::VectorXf::Zero(config_.dim);
+    std::vector<bool> members(classes.size(), false);
     for (std::size_t i = 0; i < classes.size(); ++i)
-      if (classes[i].coarse == k) sum += prototypes.row(i).transpose();
-    names_.emplace_back(std::string(kCoarseClasses[k]), sum.normalized());
+      if (classes[i].coarse == k) sum += prototypes.row(i).transpose(), members[i] = true;
+    names_.emplace_back(std::string(kCoarseClasses[k]), with_gap(sum.normalized(), members, 0x10000u + k));
   }
 }
 

@@ -24,6 +24,12 @@ struct SimulatedEncoderConfig {
   float related_confusion = 0.75f; // chance that a swap picks a related class (when there is one)
   float noise_sigma = 0.8f;        // norm of the per-pixel noise relative to the unit prototype
   float blur = 1.5f;               // Gaussian sigma in feature pixels mixing classes at boundaries
+  // Text encoder only: SIMULATED text-image gap. 0 (default): a class name's text embedding is
+  // its image prototype, an ideal text encoder. g > 0: each name's embedding is its ideal vector
+  // plus g times a random mix of OTHER classes' prototypes (weights concentrated on a few), as a
+  // CLIP text embedding of one class resembles image features of others, so that some queries
+  // "drown out" the rest (paper section 6.2.5, Figure 6.3). Does not change the image space.
+  float text_gap = 0.f;
 };
 
 // Throws Error naming the first parameter out of range.
@@ -60,8 +66,8 @@ class SimulatedDenseEncoder : public DenseImageEncoder {
 
 // RELLIS-3D class names ("grass"), coarse class names ("rough": the normalised mean of its fine
 // classes; "void" is the fine class), and phrases naming them ("tall grass", "two trees") map to
-// the prototypes; a phrase naming several averages them. Anything else is an Error listing the
-// known names.
+// the prototypes (moved by config.text_gap when it is > 0); a phrase naming several averages
+// them. Anything else is an Error listing the known names.
 class SimulatedTextEncoder : public TextEncoder {
  public:
   explicit SimulatedTextEncoder(SimulatedEncoderConfig config = {});

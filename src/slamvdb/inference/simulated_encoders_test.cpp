@@ -166,6 +166,28 @@ TEST(SimulatedEncoders, TextEncoderReturnsTheDenseEncodersPrototypes) {
   EXPECT_NE(text.model_id().find("simulated"), std::string::npos);
 }
 
+// The opt-in SIMULATED text-image gap: text embeddings lean towards other classes' image
+// prototypes; the image side and the model id are unchanged.
+TEST(SimulatedEncoders, TextGapMovesNamesTowardsOtherClasses) {
+  SimulatedEncoderConfig config;
+  config.text_gap = 3.f;
+  SimulatedTextEncoder text(config);
+  const PrototypeMatrix p = simulated_class_prototypes(config);
+  int leaning = 0;
+  for (const auto& c : rellis_classes()) {
+    const std::vector<float> v = text.encode(c.name);
+    const Eigen::VectorXf cos = p * Eigen::Map<const Eigen::VectorXf>(v.data(), v.size());
+    EXPECT_LT(cos[row_of(c.name)], 0.9f) << c.name;
+    Eigen::Index best;
+    cos.maxCoeff(&best);
+    leaning += best != row_of(c.name);
+  }
+  EXPECT_GE(leaning, 5);  // several names are closer to another class's pixels than to their own
+  EXPECT_EQ(text.model_id(), SimulatedTextEncoder(SimulatedEncoderConfig{}).model_id());
+  config.text_gap = -1.f;
+  EXPECT_THROW(SimulatedTextEncoder{config}, Error);
+}
+
 TEST(SimulatedEncoders, OtherDimensionsWork) {
   SimulatedEncoderConfig config;
   config.dim = 64;

@@ -393,3 +393,31 @@ TEST_F(TorchEncoders, MapCommandFusesTheNetworksFeatures) {
 
 }  // namespace
 }  // namespace slamvdb
+
+namespace slamvdb {
+namespace {
+
+// `slamvdb train-queries --features model --text-model`: features from the dense network on the
+// RGB images, initial queries from the text network, both 16-d test networks (random weights,
+// so only the plumbing is checked, not the accuracy).
+TEST_F(TorchEncoders, TrainQueriesCommandRunsBothNetworks) {
+  const fs::path seq = dir_ / "train_seq", queries = dir_ / "queries.json";
+  ASSERT_EQ(run_cli("synth " + quoted(seq) + " --length 8 --image-size 192x120", dir_ / "synth2.txt"), 0)
+      << read_text(dir_ / "synth2.txt");
+  ASSERT_EQ(run_cli("train-queries " + quoted(seq) + " -o " + quoted(queries) + " --features model --model " +
+                        quoted(model("dense")) + " --text-model " + quoted(model("text")) +
+                        " --epochs 1 --pixels-per-image 64 --val-fraction 0.3",
+                    dir_ / "train.txt"),
+            0)
+      << read_text(dir_ / "train.txt");
+  const std::string out = read_text(dir_ / "train.txt");
+  EXPECT_NE(out.find("epoch 1/1: train loss"), std::string::npos) << out;
+  EXPECT_NE(out.find("initialised from the text embeddings of the class names"), std::string::npos) << out;
+  const json q = json::parse(read_text(queries));
+  EXPECT_EQ(q["model_id"], "tiny-lseg-random-init");
+  EXPECT_EQ(q["dim"], 16);
+  EXPECT_EQ(q["classes"].size(), 6u);
+}
+
+}  // namespace
+}  // namespace slamvdb

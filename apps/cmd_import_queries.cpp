@@ -1,0 +1,47 @@
+// `slamvdb import-queries`: a folder of per-class CSV query vectors (the authors' prototype layout)
+// -> one query set file.
+#include <fmt/format.h>
+
+#include "command_registry.hpp"
+#include "feature_options.hpp"
+#include "slamvdb/ontology/ontology.hpp"
+#include "slamvdb/query/query_set.hpp"
+
+namespace slamvdb::cli {
+namespace {
+
+struct Options {
+  std::string dir, output, model_id, ontology;
+};
+
+void run(const Options& opt) {
+  check_output_file(opt.output, "--output");
+  std::optional<Ontology> ontology;
+  if (!opt.ontology.empty()) ontology = Ontology::load_or_builtin(opt.ontology);
+  const QuerySet q = import_query_csv_dir(opt.dir, opt.model_id, ontology ? &*ontology : nullptr);
+  save_query_set(opt.output, q);
+  fmt::print("{} classes ({}), {}-d, model {}{} -> {}\n", q.size(), fmt::join(q.names, ", "), q.dim(), q.model_id,
+             ontology ? ", order and colours from ontology " + ontology->name() : std::string(), opt.output);
+}
+
+void add(CLI::App& root) {
+  auto opt = std::make_shared<Options>();
+  auto* cmd = root.add_subcommand(
+      "import-queries",
+      "Import a folder of query vectors, one CLASS.csv per class holding one line of comma-separated floats (the "
+      "authors' prototype layout), into a query set file");
+  cmd->add_option("csv_dir", opt->dir, "Folder of CLASS.csv files")->required()->check(CLI::ExistingDirectory);
+  cmd->add_option("-o,--output", opt->output, "Query set file to write (.json)")->required();
+  cmd->add_option("--model-id", opt->model_id,
+                  "Model id of the embedding space the vectors belong to (the map's model id, see `slamvdb info`)")
+      ->required();
+  cmd->add_option("--ontology", opt->ontology,
+                  "Ontology (file or built-in name) giving class order, colours and void classes; every class needs "
+                  "a file");
+  cmd->callback([opt] { run(*opt); });
+}
+
+const RegisterCommand reg{add};
+
+}  // namespace
+}  // namespace slamvdb::cli
