@@ -48,6 +48,7 @@ struct FeatureOptions {
   std::string feature_size = "192x128";
   uint64_t sim_seed = 1;
   float sim_text_gap = 0.f;
+  float sim_confusion = SimulatedEncoderConfig{}.confusion_rate;
   std::string images;       // FIRST:LAST (0-based, inclusive) among the labelled images
   std::size_t max_images = 0;
 };
@@ -72,6 +73,10 @@ inline void add_feature_options(CLI::App* cmd, FeatureOptions& o, bool with_text
   cmd->add_option("--dim", o.dim, "Simulated embedding dimension")->capture_default_str()->check(CLI::Range(1, 65536));
   cmd->add_option("--feature-size", o.feature_size, "Simulated feature map size WIDTHxHEIGHT")->capture_default_str();
   cmd->add_option("--sim-seed", o.sim_seed, "Seed of the simulated encoder")->capture_default_str();
+  cmd->add_option("--sim-confusion", o.sim_confusion,
+                  "SIMULATED per-view confusion rate of the simulated encoder (as for `map`)")
+      ->capture_default_str()
+      ->check(CLI::Range(0.0, 1.0));
   if (with_text_model)
     cmd->add_option("--sim-text-gap", o.sim_text_gap,
                     "SIMULATED text-image gap of the simulated text encoder: 0 = ideal text embeddings; g > 0 mixes "
@@ -113,6 +118,7 @@ inline SimulatedEncoderConfig simulated_config(const FeatureOptions& o) {
   sim.dim = o.dim;
   sim.seed = o.sim_seed;
   sim.text_gap = o.sim_text_gap;
+  sim.confusion_rate = o.sim_confusion;
   return sim;
 }
 

@@ -1,4 +1,4 @@
-// The global index and the map file: a full read of a million semantic entries, re-indexing after
+// The global index and the map file: a full read of a million semantic cells, re-indexing after
 // one submap moves against a full rebuild, and save / load of a map.
 #include <benchmark/benchmark.h>
 #include <unistd.h>
@@ -8,46 +8,12 @@
 #include <memory>
 #include <random>
 
+#include "bench_maps.hpp"
 #include "slamvdb/map/semantic_map.hpp"
 #include "slamvdb/store/map_store.hpp"
 
 namespace slamvdb::bench {
 namespace {
-
-constexpr int kSubmaps = 10;
-constexpr int kEntriesPerSubmap = 100000;  // 1 M semantic entries of 512-d fp16 in all
-
-// Ten submaps along a road, each a 100 k-voxel surface patch; neighbours overlap by a fifth, so
-// some index cells hold several entries (the count-weighted mean is computed on read).
-std::unique_ptr<SemanticMap> make_indexed_map() {
-  MapParams params;
-  params.semantic = {512, EmbeddingPrecision::kFloat16};
-  auto map = std::make_unique<SemanticMap>(params);
-  std::mt19937 rng(1);
-  std::normal_distribution<float> noise(0.0f, 0.05f);
-  std::vector<float> e(512);
-  for (int s = 0; s < kSubmaps; ++s) {
-    VoxelMap voxels(params);
-    const int side = 316;  // 316^2 ~ 100 k
-    for (int x = 0; x < side && static_cast<int>(voxels.semantics().size()) < kEntriesPerSubmap; ++x)
-      for (int y = 0; y < side && static_cast<int>(voxels.semantics().size()) < kEntriesPerSubmap; ++y) {
-        for (float& v : e) v = noise(rng);
-        e[s % 512] += 1.0f;
-        voxels.occupancy().set_log_odds({x, y, 0}, 1.0f);
-        voxels.semantics().set({x, y, 0}, e.data(), 1 + (x + y) % 50);
-      }
-    SubmapInfo info;
-    info.id = s;
-    info.T_world_submap.translation() = Vec3d(s * side * 0.25 * 0.8, 0.0, 0.0);  // 20% overlap
-    map->add_finished_submap(info, std::move(voxels));
-  }
-  return map;
-}
-
-SemanticMap& indexed_map() {
-  static const std::unique_ptr<SemanticMap> map = make_indexed_map();
-  return *map;
-}
 
 // Every cell read as a reader sees it: position, summed count and the count-weighted mean (a view
 // into submap storage for single-entry cells, computed for shared ones).

@@ -120,6 +120,24 @@ SLAMVDB_AVX2 void add_scaled_f16_avx2(float* acc, const uint16_t* v, float w, st
   for (; i < n; ++i) acc[i] += w * _cvtsh_ss(v[i]);
 }
 
+SLAMVDB_AVX2 void dot_norm_f16_avx2(const uint16_t* v, const float* q, std::size_t n, float* dot, float* norm2) {
+  __m256 d0 = _mm256_setzero_ps(), d1 = _mm256_setzero_ps(), s0 = _mm256_setzero_ps(), s1 = _mm256_setzero_ps();
+  std::size_t i = 0;
+  for (; i + 16 <= n; i += 16) {
+    const __m256 x0 = load_half8(v + i), x1 = load_half8(v + i + 8);
+    d0 = _mm256_fmadd_ps(x0, _mm256_loadu_ps(q + i), d0);
+    d1 = _mm256_fmadd_ps(x1, _mm256_loadu_ps(q + i + 8), d1);
+    s0 = _mm256_fmadd_ps(x0, x0, s0);
+    s1 = _mm256_fmadd_ps(x1, x1, s1);
+  }
+  float d = hsum(_mm256_add_ps(d0, d1)), s = hsum(_mm256_add_ps(s0, s1));
+  for (; i < n; ++i) {
+    const float x = _cvtsh_ss(v[i]);
+    d += x * q[i], s += x * x;
+  }
+  *dot = d, *norm2 = s;
+}
+
 struct Dispatch {
   bool avx2;
   void (*half_to_float)(const uint16_t*, float*, std::size_t);
@@ -181,6 +199,13 @@ float squared_norm(EmbeddingView v, std::size_t n) {
   if (v.precision == EmbeddingPrecision::kFloat16)
     return dispatch().squared_norm_f16(static_cast<const uint16_t*>(v.data), n);
   return dot(v, static_cast<const float*>(v.data), n);
+}
+
+void dot_and_squared_norm(EmbeddingView v, const float* q, std::size_t n, float* dot, float* norm2) {
+  if (v.precision == EmbeddingPrecision::kFloat16 && dispatch().avx2)
+    return dot_norm_f16_avx2(static_cast<const uint16_t*>(v.data), q, n, dot, norm2);
+  *dot = kernels::dot(v, q, n);
+  *norm2 = squared_norm(v, n);
 }
 
 bool all_finite(const float* x, std::size_t n) {

@@ -39,6 +39,8 @@ void add_scaled(float* acc, EmbeddingView v, float w, std::size_t n);
 // Dot product of a stored embedding with an fp32 vector, and the stored embedding's squared norm.
 float dot(EmbeddingView v, const float* q, std::size_t n);
 float squared_norm(EmbeddingView v, std::size_t n);
+// Both in one pass over v (a similarity search reads every stored embedding once).
+void dot_and_squared_norm(EmbeddingView v, const float* q, std::size_t n, float* dot, float* norm2);
 
 // True when all n values are finite.
 bool all_finite(const float* x, std::size_t n);

@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "slamvdb/core/embedding_kernels.hpp"
 #include "slamvdb/core/error.hpp"
 
 namespace slamvdb {
@@ -88,6 +89,59 @@ SLAMVDB_AVX2 void dots_avx2(const float* x, std::size_t rows, const QueryMatrix&
   }
 }
 
+// The same for rows anywhere in memory in their storage precision (the map's fp16 entries are
+// read where they are stored, with no decoded copy): F16C converts eight values per load.
+#define SLAMVDB_AVX2_F16C __attribute__((target("avx2,fma,f16c")))
+
+template <int NQ, bool kHalf>
+SLAMVDB_AVX2_F16C void dot_block_view(const void* xv, const float* q, int dim, float* out, float* norm2) {
+  __m256 acc[NQ + 1];
+  for (int k = 0; k <= NQ; ++k) acc[k] = _mm256_setzero_ps();
+  const auto* xh = static_cast<const uint16_t*>(xv);
+  const auto* xf = static_cast<const float*>(xv);
+  int d = 0;
+  for (; d + 8 <= dim; d += 8) {
+    const __m256 v = kHalf ? _mm256_cvtph_ps(_mm_loadu_si128(reinterpret_cast<const __m128i*>(xh + d)))
+                           : _mm256_loadu_ps(xf + d);
+    for (int k = 0; k < NQ; ++k)
+      acc[k] = _mm256_fmadd_ps(v, _mm256_loadu_ps(q + static_cast<std::size_t>(k) * dim + d), acc[k]);
+    acc[NQ] = _mm256_fmadd_ps(v, v, acc[NQ]);
+  }
+  float tail[NQ + 1] = {};
+  for (; d < dim; ++d) {
+    const float x = kHalf ? _cvtsh_ss(xh[d]) : xf[d];
+    for (int k = 0; k < NQ; ++k) tail[k] += x * q[static_cast<std::size_t>(k) * dim + d];
+    tail[NQ] += x * x;
+  }
+  for (int k = 0; k < NQ; ++k) out[k] = hsum(acc[k]) + tail[k];
+  *norm2 = hsum(acc[NQ]) + tail[NQ];
+}
+
+template <bool kHalf>
+SLAMVDB_AVX2_F16C void dots_view_avx2(const EmbeddingView& v, const QueryMatrix& q, float* out, float* norm2) {
+  const int n = static_cast<int>(q.rows()), dim = static_cast<int>(q.cols());
+  float ignored;
+  for (int k0 = 0; k0 < n; k0 += 6) {  // blocks of six queries; the row stays in L1 between blocks
+    const int nq = std::min(6, n - k0);
+    const float* qk = q.data() + static_cast<std::size_t>(k0) * dim;
+    float* o = out + k0;
+    float* n2 = k0 == 0 ? norm2 : &ignored;
+    switch (nq) {
+      case 1: dot_block_view<1, kHalf>(v.data, qk, dim, o, n2); break;
+      case 2: dot_block_view<2, kHalf>(v.data, qk, dim, o, n2); break;
+      case 3: dot_block_view<3, kHalf>(v.data, qk, dim, o, n2); break;
+      case 4: dot_block_view<4, kHalf>(v.data, qk, dim, o, n2); break;
+      case 5: dot_block_view<5, kHalf>(v.data, qk, dim, o, n2); break;
+      default: dot_block_view<6, kHalf>(v.data, qk, dim, o, n2); break;
+    }
+  }
+}
+
+bool cpu_has_f16c() {
+  __builtin_cpu_init();
+  return __builtin_cpu_supports("f16c");
+}
+
 bool cpu_has_avx2_fma() {
   __builtin_cpu_init();
   return __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma");
@@ -102,14 +156,36 @@ QueryClassifier::QueryClassifier(const QuerySet& queries, ClassifyOptions option
   if (options.void_to_second_best)
     for (int k : queries.void_classes) candidate_[k] = 0;
   use_avx2_ = !options.portable_kernel && cpu_has_avx2_fma();
+  use_f16c_ = use_avx2_ && cpu_has_f16c();
 }
 
 void QueryClassifier::classify_chunk(const float* x, std::size_t rows, QueryMatch* out, float* d,
                                      float* norm2) const {
-  const int n = num_classes();
   if (use_avx2_) dots_avx2(x, rows, queries_, d, norm2);
   else dots_eigen(x, rows, queries_, d, norm2);
+  decide(d, norm2, rows, out);
+}
 
+void QueryClassifier::classify_views(const EmbeddingView* rows, std::size_t count, QueryMatch* out) const {
+  const int n = num_classes();
+  const auto dim = static_cast<std::size_t>(this->dim());
+  std::vector<float> dots(count * n), norm2(count), decoded;
+  for (std::size_t r = 0; r < count; ++r) {
+    const EmbeddingView& v = rows[r];
+    if (use_f16c_) {
+      if (v.precision == EmbeddingPrecision::kFloat16) dots_view_avx2<true>(v, queries_, dots.data() + r * n, &norm2[r]);
+      else dots_view_avx2<false>(v, queries_, dots.data() + r * n, &norm2[r]);
+    } else {
+      decoded.resize(dim);
+      kernels::decode(v, decoded.data(), dim);
+      dots_eigen(decoded.data(), 1, queries_, dots.data() + r * n, &norm2[r]);
+    }
+  }
+  decide(dots.data(), norm2.data(), count, out);
+}
+
+void QueryClassifier::decide(const float* d, const float* norm2, std::size_t rows, QueryMatch* out) const {
+  const int n = num_classes();
   for (std::size_t r = 0; r < rows; ++r) {
     QueryMatch& m = out[r];
     // Zero, NaN, infinite (or overflowing) embeddings have no direction: no class, no NaN score.

@@ -10,6 +10,7 @@
 #include <span>
 #include <vector>
 
+#include "slamvdb/core/embedding_kernels.hpp"
 #include "slamvdb/query/query_set.hpp"
 
 namespace slamvdb {
@@ -42,6 +43,9 @@ class QueryClassifier {
   void classify(const float* embeddings, std::size_t rows, QueryMatch* out) const;
   // Throws Error unless embeddings.size() is a multiple of dim().
   std::vector<QueryMatch> classify(std::span<const float> embeddings) const;
+  // Rows wherever they are stored, fp16 or fp32 (a map's entries, read in place); single-threaded,
+  // for callers that split the work themselves.
+  void classify_views(const EmbeddingView* rows, std::size_t count, QueryMatch* out) const;
 
   // Whether the AVX2 + FMA kernel runs (chosen at run time; the Eigen kernel otherwise).
   bool uses_avx2() const { return use_avx2_; }
@@ -49,10 +53,13 @@ class QueryClassifier {
  private:
   // rows <= 256; dots (rows x classes) and norm2 (rows) are scratch.
   void classify_chunk(const float* embeddings, std::size_t rows, QueryMatch* out, float* dots, float* norm2) const;
+  // The rule on rows x classes dot products (with unit queries) and the rows' squared norms.
+  void decide(const float* dots, const float* norm2, std::size_t rows, QueryMatch* out) const;
 
   QueryMatrix queries_;             // n x dim, unit rows
   std::vector<uint8_t> candidate_;  // per class: may be the answer
   bool use_avx2_ = false;
+  bool use_f16c_ = false;
 };
 
 // The same as one call: QueryClassifier(queries, options).classify(...). Callers that classify many

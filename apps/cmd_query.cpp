@@ -1,0 +1,241 @@
+// `slamvdb query`: ask a map questions through its global index (paper section 6.2.5):
+// similarity with a text, a class of a query set, an image or a raw vector, composed of positive and
+// negative terms (Figure 6.2), or what the map holds at given world points.
+#include <fmt/format.h>
+#include <spdlog/spdlog.h>
+
+#include <fstream>
+#include <sstream>
+
+#include "command_registry.hpp"
+#include "feature_options.hpp"
+#include "slamvdb/inference/simulated_encoders.hpp"
+#include "slamvdb/io/image_io.hpp"
+#include "slamvdb/query/map_query.hpp"
+#include "slamvdb/store/map_store.hpp"
+
+namespace slamvdb::cli {
+namespace {
+
+struct Options {
+  std::string map, queries, output, at_csv, text_model, image_model;
+  std::vector<std::string> text, not_text, classes, not_classes, images, at;
+  std::size_t top_k = 100;
+  float threshold = -std::numeric_limits<float>::infinity();
+  uint64_t sim_seed = 1;
+  float sim_text_gap = 0.f;
+  bool ignore_model_id = false, no_void_rule = false;
+};
+
+Vec3d parse_point(const std::string& text, const std::string& where) {
+  std::array<double, 3> v{};
+  std::istringstream in(text);
+  char sep = 0;
+  if (!(in >> v[0] >> sep >> v[1] >> sep >> v[2]) || !std::isfinite(v[0] + v[1] + v[2]))
+    throw CLI::ValidationError(where, fmt::format("'{}' is not x,y,z", text));
+  return {v[0], v[1], v[2]};
+}
+
+std::vector<Vec3d> read_points_csv(const std::string& file) {
+  std::ifstream in(file);
+  if (!in) throw Error(fmt::format("cannot read {}", file));
+  std::vector<Vec3d> points;
+  std::string line;
+  for (int n = 1; std::getline(in, line); ++n) {
+    if (line.empty() || (n == 1 && line.find_first_of("0123456789-") != 0)) continue;  // a header
+    try {
+      points.push_back(parse_point(line, fmt::format("{}:{}", file, n)));
+    } catch (const CLI::ValidationError& e) {
+      throw Error(fmt::format("{}:{}: '{}' is not x,y,z", file, n, line));
+    }
+  }
+  return points;
+}
+
+// The embedding space must be the map's: an encoder of another space answers nothing meaningful.
+void check_space(const std::string& what, const std::string& model_id, const SemanticMap& map, bool ignore) {
+  if (ignore || model_id == map.info().model_id) return;
+  throw Error(fmt::format("{} embeds into '{}' but the map is in '{}' (use the encoder the map was built with, or "
+                          "--ignore-model-id if they are the same space)",
+                          what, model_id, map.info().model_id));
+}
+
+Eigen::VectorXf to_vector(const std::vector<float>& v) { return Eigen::Map<const Eigen::VectorXf>(v.data(), v.size()); }
+
+Eigen::VectorXf build_query(const Options& opt, const SemanticMap& map) {
+  std::vector<Eigen::VectorXf> positive, negative;
+  if (!opt.text.empty() || !opt.not_text.empty()) {
+    std::unique_ptr<TextEncoder> encoder;
+    if (!opt.text_model.empty()) {
+#if SLAMVDB_WITH_TORCH
+      encoder = std::make_unique<TorchTextEncoder>(opt.text_model);
+#else
+      throw Error("this slamvdb was built without TorchScript support (SLAMVDB_WITH_TORCH=OFF)");
+#endif
+    } else {
+      SimulatedEncoderConfig sim;
+      sim.dim = map.params().semantic.dim;
+      sim.seed = opt.sim_seed;
+      sim.text_gap = opt.sim_text_gap;
+      encoder = std::make_unique<SimulatedTextEncoder>(sim);
+      spdlog::warn("text is embedded by the SIMULATED text encoder {} (use --text-model for CLIP)", encoder->model_id());
+    }
+    check_space("the text encoder", encoder->model_id(), map, opt.ignore_model_id);
+    for (const auto& t : opt.text) positive.push_back(to_vector(encoder->encode(t)));
+    for (const auto& t : opt.not_text) negative.push_back(to_vector(encoder->encode(t)));
+  }
+  if (!opt.classes.empty() || !opt.not_classes.empty()) {
+    const QuerySet queries = load_query_set(opt.queries);
+    check_compatible(queries, map.params().semantic.dim, map.info().model_id,
+                     opt.ignore_model_id ? ModelIdCheck::kIgnore : ModelIdCheck::kRequireMatch);
+    auto row = [&](const std::string& name) -> Eigen::VectorXf {
+      const auto k = queries.find(name);
+      if (!k) throw Error(fmt::format("{} has no class '{}'", opt.queries, name));
+      return queries.vectors.row(*k).transpose();
+    };
+    for (const auto& c : opt.classes) positive.push_back(row(c));
+    for (const auto& c : opt.not_classes) negative.push_back(row(c));
+  }
+  if (!opt.images.empty()) {
+    std::unique_ptr<ImageEncoder> encoder;
+    bool labels = false;
+    if (!opt.image_model.empty()) {
+#if SLAMVDB_WITH_TORCH
+      encoder = std::make_unique<TorchImageEncoder>(opt.image_model);
+#else
+      throw Error("this slamvdb was built without TorchScript support (SLAMVDB_WITH_TORCH=OFF)");
+#endif
+    } else {
+      SimulatedEncoderConfig sim;
+      sim.dim = map.params().semantic.dim;
+      sim.seed = opt.sim_seed;
+      encoder = std::make_unique<SimulatedImageEncoder>(sim);
+      labels = true;
+      spdlog::warn("--image is embedded by the SIMULATED image encoder from its 2D label image (use --image-model "
+                   "for a network on RGB)");
+    }
+    check_space("the image encoder", encoder->model_id(), map, opt.ignore_model_id);
+    for (const auto& file : opt.images) {
+      ImageRecord rec;
+      (labels ? rec.labels : rec.rgb) = file;
+      positive.push_back(to_vector(encoder->encode(load_image_frame(rec, !labels, labels))));
+    }
+  }
+  return composite_query(positive, negative);
+}
+
+void write_or_throw(std::ofstream& out, const std::string& file) {
+  if (!out.flush()) throw Error(fmt::format("cannot write {}", file));
+}
+
+void run_points(const Options& opt, const SemanticMap& map) {
+  std::vector<Vec3d> points;
+  for (const auto& p : opt.at) points.push_back(parse_point(p, "--at"));
+  if (!opt.at_csv.empty()) {
+    const auto more = read_points_csv(opt.at_csv);
+    points.insert(points.end(), more.begin(), more.end());
+  }
+  std::optional<QuerySet> queries;
+  if (!opt.queries.empty()) queries = load_query_set(opt.queries);
+  ClassifyOptions options;
+  options.void_to_second_best = !opt.no_void_rule;
+  const auto answers = query_points(map, points, queries ? &*queries : nullptr, options,
+                                    opt.ignore_model_id ? ModelIdCheck::kIgnore : ModelIdCheck::kRequireMatch);
+  std::string csv = "x,y,z,found,cell_x,cell_y,cell_z,count,class,score,margin\n";
+  for (const PointQuery& a : answers) {
+    const std::string cls = a.match && a.match->class_index != kNoClass ? queries->names[a.match->class_index] : "";
+    csv += fmt::format("{},{},{},{},{:.3f},{:.3f},{:.3f},{},{},{},{}\n", a.point_world.x(), a.point_world.y(),
+                       a.point_world.z(), a.found ? 1 : 0, a.cell_centre.x(), a.cell_centre.y(), a.cell_centre.z(),
+                       a.count, cls, a.match ? fmt::format("{:.6f}", a.match->score) : "",
+                       a.match ? fmt::format("{:.6f}", a.match->margin) : "");
+  }
+  if (opt.output.empty()) {
+    fmt::print("{}", csv);
+  } else {
+    std::ofstream out(opt.output, std::ios::binary);
+    out << csv;
+    write_or_throw(out, opt.output);
+    fmt::print("{} points, {} in a semantic voxel: {}\n", answers.size(),
+               std::count_if(answers.begin(), answers.end(), [](const PointQuery& a) { return a.found; }), opt.output);
+  }
+}
+
+void run(const Options& opt) {
+  const bool spatial = !opt.at.empty() || !opt.at_csv.empty();
+  const bool similarity = !opt.text.empty() || !opt.classes.empty() || !opt.images.empty();
+  if (spatial == similarity)
+    throw CLI::ValidationError("query", "give either a query (--text, --class, --image) or points (--at, --at-csv)");
+  if ((!opt.classes.empty() || !opt.not_classes.empty()) && opt.queries.empty())
+    throw CLI::ValidationError("--class", "needs --queries QUERIES.json");
+  if (spatial) {
+    for (const auto& p : opt.at) parse_point(p, "--at");
+  }
+  if (!opt.output.empty()) check_output_file(opt.output, "--output");
+  const SemanticMap map = load_map(opt.map);
+  if (spatial) return run_points(opt, map);
+
+  const Eigen::VectorXf q = build_query(opt, map);
+  SearchOptions search;
+  search.top_k = opt.top_k;
+  search.threshold = opt.threshold;
+  const auto results = similarity_search(map, std::span<const float>(q.data(), static_cast<std::size_t>(q.size())), search);
+  fmt::print("{} of {} semantic voxels{}:\n", results.size(), map.num_index_cells(),
+             opt.top_k ? fmt::format(" (top {})", opt.top_k) : std::string());
+  fmt::print("| rank | x | y | z | cosine | observations |\n|---:|---:|---:|---:|---:|---:|\n");
+  for (std::size_t i = 0; i < results.size() && i < 10; ++i)
+    fmt::print("| {} | {:.2f} | {:.2f} | {:.2f} | {:.4f} | {} |\n", i + 1, results[i].position_world.x(),
+               results[i].position_world.y(), results[i].position_world.z(), results[i].score, results[i].count);
+  if (!opt.output.empty()) {
+    std::ofstream out(opt.output, std::ios::binary);
+    out << "rank,x,y,z,score,count\n";
+    for (std::size_t i = 0; i < results.size(); ++i)
+      out << fmt::format("{},{:.3f},{:.3f},{:.3f},{:.6f},{}\n", i + 1, results[i].position_world.x(),
+                         results[i].position_world.y(), results[i].position_world.z(), results[i].score,
+                         results[i].count);
+    write_or_throw(out, opt.output);
+    fmt::print("CSV  {}: {} rows\n", opt.output, results.size());
+  }
+}
+
+void add(CLI::App& root) {
+  auto opt = std::make_shared<Options>();
+  auto* cmd = root.add_subcommand(
+      "query",
+      "Ask a map: the voxels most similar to a query (text, a class of a query set, an image; several terms add up, "
+      "--not terms subtract: the paper's Figure 6.2), or what the map holds at world points (--at)");
+  cmd->add_option("map", opt->map, "Map file (.svdb)")->required()->check(CLI::ExistingFile);
+  cmd->add_option("--text", opt->text, "A text query (repeatable: the terms add up)");
+  cmd->add_option("--not", opt->not_text, "A text to subtract (repeatable)");
+  cmd->add_option("--queries", opt->queries, "Query set file, for --class / --not-class and to classify --at points")
+      ->check(CLI::ExistingFile);
+  cmd->add_option("--class", opt->classes, "A class of --queries as the query (repeatable)");
+  cmd->add_option("--not-class", opt->not_classes, "A class of --queries to subtract (repeatable)");
+  cmd->add_option("--image", opt->images, "An image as the query (repeatable)")->check(CLI::ExistingFile);
+  cmd->add_option("--text-model", opt->text_model, "TorchScript CLIP text encoder (default: the SIMULATED one)")
+      ->check(CLI::ExistingFile);
+  cmd->add_option("--image-model", opt->image_model,
+                  "TorchScript CLIP image encoder (default: the SIMULATED one, which reads a 2D label image)")
+      ->check(CLI::ExistingFile);
+  cmd->add_option("--sim-seed", opt->sim_seed, "Seed of the simulated encoders (as for `map`)")->capture_default_str();
+  cmd->add_option("--sim-text-gap", opt->sim_text_gap, "SIMULATED text-image gap (see train-queries)")
+      ->capture_default_str()
+      ->check(kNonNegative);
+  cmd->add_option("--top-k", opt->top_k, "Keep the K most similar voxels (0: all above --threshold)")
+      ->capture_default_str();
+  cmd->add_option("--threshold", opt->threshold, "Keep voxels whose cosine similarity is at least this")
+      ->check(CLI::Range(-1.0, 1.0));
+  cmd->add_option("--at", opt->at, "A world point x,y,z to look up (repeatable)");
+  cmd->add_option("--at-csv", opt->at_csv, "A CSV file of world points x,y,z to look up")->check(CLI::ExistingFile);
+  cmd->add_option("-o,--output", opt->output,
+                  "Write the results as CSV (similarity: rank,x,y,z,score,count; points: "
+                  "x,y,z,found,cell_x,cell_y,cell_z,count,class,score,margin)");
+  cmd->add_flag("--no-void-rule", opt->no_void_rule, "With --queries and --at: let void classes win");
+  cmd->add_flag("--ignore-model-id", opt->ignore_model_id,
+                "Accept an encoder or queries whose model id differs from the map's (the dimension is still checked)");
+  cmd->callback([opt] { run(*opt); });
+}
+
+const RegisterCommand reg{add};
+
+}  // namespace
+}  // namespace slamvdb::cli

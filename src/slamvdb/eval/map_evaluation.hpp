@@ -1,0 +1,54 @@
+#pragma once
+// The paper's evaluation of a semantic map (section 6.3.2, Table 6.1), void ignored as in the paper:
+// - hit rate (Eq. 6.2): every labelled LiDAR point, moved into the world frame with the ground-
+//   truth pose of its scan, that falls into a non-empty map voxel is counted; it is a hit when that
+//   voxel's class (the map classified with the query set, void -> second-best) is the point's
+//   coarse class. Per class: the share of that class's counted points that are hits.
+// - voxel-wise labelling: each non-empty voxel takes the most frequent ground-truth class of the
+//   points inside it, and recall, precision and IoU are computed over those voxels.
+// A "non-empty voxel" is a cell of the map's global index that holds semantics (a voxel seen by the
+// camera), as the paper's table counts them. Points of void classes neither count for the hit rate
+// nor vote; a tie between classes goes to the class that comes first in the ontology; points with
+// an unlabelled id are skipped; ids the ontology does not know are an error (a wrong ontology).
+#include <cstdint>
+#include <functional>
+#include <vector>
+
+#include "slamvdb/core/types.hpp"
+#include "slamvdb/eval/confusion_matrix.hpp"
+#include "slamvdb/map/semantic_map.hpp"
+#include "slamvdb/ontology/ontology.hpp"
+#include "slamvdb/query/map_query.hpp"
+
+namespace slamvdb {
+
+// One labelled scan of the evaluation sequence, loaded on demand (scans are read in parallel).
+struct GroundTruthScan {
+  Pose T_world_sensor;  // ground truth
+  std::function<LidarScan()> load;  // points in the sensor frame with one label per point
+  std::string name;                 // for messages
+};
+
+struct MapEvaluationOptions {
+  ClassifyOptions classify;  // void -> second-best on by default
+  ModelIdCheck model_check = ModelIdCheck::kRequireMatch;
+};
+
+struct MapEvaluation {
+  MetricsReport report;       // voxel-wise metrics with the hit rates filled in (overall and per class)
+  ConfusionMatrix voxels;     // ground truth (majority label) x predicted class, per non-empty voxel
+  ConfusionMatrix points;     // ground truth x class of the voxel the point fell into
+  uint64_t points_total = 0;  // points of the scans
+  uint64_t points_unlabelled = 0, points_void = 0, points_outside = 0;  // skipped, by reason
+  std::size_t scans = 0, map_cells = 0, cells_with_points = 0;
+};
+
+using EvaluationProgress = std::function<void(std::size_t done, std::size_t total)>;
+
+// Throws Error on queries from another embedding space, query names that are no ontology class,
+// a scan whose labels do not match its points, or label ids the ontology does not know.
+MapEvaluation evaluate_map(const SemanticMap& map, const std::vector<GroundTruthScan>& scans,
+                           const QuerySet& queries, const Ontology& ontology,
+                           const MapEvaluationOptions& options = {}, const EvaluationProgress& progress = {});
+
+}  // namespace slamvdb

@@ -1,0 +1,169 @@
+#include "slamvdb/query/map_query.hpp"
+
+#include <fmt/format.h>
+#include <tbb/blocked_range.h>
+#include <tbb/enumerable_thread_specific.h>
+#include <tbb/parallel_for.h>
+#include <tbb/parallel_sort.h>
+
+#include <algorithm>
+#include <cmath>
+#include <queue>
+
+#include "slamvdb/core/error.hpp"
+
+namespace slamvdb {
+namespace {
+
+constexpr std::size_t kGrain = 2048;  // cells per task: big enough to amortise, small enough to balance
+
+bool better(const ScoredCell& a, const ScoredCell& b) {
+  if (a.score != b.score) return a.score > b.score;
+  return a.cell < b.cell;
+}
+
+// Keeps the best k (all when k == 0) of what it is offered.
+class TopK {
+ public:
+  explicit TopK(std::size_t k) : k_(k) {}
+  void offer(const ScoredCell& c) {
+    if (k_ == 0) return all_.push_back(c);
+    if (heap_.size() < k_) {
+      heap_.push(c);
+    } else if (better(c, heap_.top())) {
+      heap_.pop();
+      heap_.push(c);
+    }
+  }
+  void drain_into(std::vector<ScoredCell>& out) {
+    out.insert(out.end(), all_.begin(), all_.end());
+    all_.clear();
+    for (; !heap_.empty(); heap_.pop()) out.push_back(heap_.top());
+  }
+
+ private:
+  struct Worse {  // the heap's top is the worst kept
+    bool operator()(const ScoredCell& a, const ScoredCell& b) const { return better(a, b); }
+  };
+  std::size_t k_;
+  std::vector<ScoredCell> all_;
+  std::priority_queue<ScoredCell, std::vector<ScoredCell>, Worse> heap_;
+};
+
+}  // namespace
+
+void check_query_vector(const SemanticMap& map, std::span<const float> query) {
+  const int dim = map.params().semantic.dim;
+  if (static_cast<int>(query.size()) != dim)
+    throw Error(fmt::format("the query has {} values but the map holds {}-d embeddings", query.size(), dim));
+  double n2 = 0;
+  for (const float v : query) n2 += static_cast<double>(v) * v;
+  if (!std::isfinite(n2) || n2 == 0) throw Error("the query vector is zero or not finite");
+}
+
+std::vector<ScoredCell> similarity_search(const SemanticMap& map, std::span<const float> query,
+                                          const SearchOptions& options) {
+  check_query_vector(map, query);
+  const auto dim = query.size();
+  Eigen::VectorXf q = Eigen::Map<const Eigen::VectorXf>(query.data(), static_cast<Eigen::Index>(dim));
+  q.normalize();
+  std::vector<ScoredCell> out;
+  map.read_index([&](const GlobalIndex& index) {
+    struct Local {
+      TopK best;
+      std::vector<float> scratch;
+    };
+    tbb::enumerable_thread_specific<Local> locals([&] { return Local{TopK(options.top_k), std::vector<float>(dim)}; });
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, index.size(), kGrain), [&](const auto& range) {
+      Local& local = locals.local();
+      for (std::size_t i = range.begin(); i != range.end(); ++i) {
+        const IndexedVoxel v = index.read(i, local.scratch.data());
+        float dot, norm2;
+        kernels::dot_and_squared_norm(v.embedding, q.data(), dim, &dot, &norm2);
+        if (!(norm2 > 0) || !std::isfinite(norm2)) continue;
+        const float score = dot / std::sqrt(norm2);
+        if (!(score >= options.threshold)) continue;
+        local.best.offer({v.cell, v.position_world, score, v.count});
+      }
+    });
+    for (Local& local : locals) local.best.drain_into(out);
+  });
+  std::sort(out.begin(), out.end(), better);
+  if (options.top_k && out.size() > options.top_k) out.resize(options.top_k);
+  return out;
+}
+
+std::vector<ClassifiedCell> classify_map(const SemanticMap& map, const QuerySet& queries,
+                                         const ClassifyOptions& options, ModelIdCheck model_check) {
+  check_compatible(queries, map.params().semantic.dim, map.info().model_id, model_check);
+  const QueryClassifier classifier(queries, options);
+  const auto dim = static_cast<std::size_t>(map.params().semantic.dim);
+  std::vector<ClassifiedCell> out;
+  map.read_index([&](const GlobalIndex& index) {
+    out.resize(index.size());
+    constexpr std::size_t kBatch = 256;
+    struct Local {
+      std::vector<float> means;  // one row per cell of the batch whose entries are averaged
+      std::vector<EmbeddingView> rows;
+      std::vector<QueryMatch> matches;
+    };
+    tbb::enumerable_thread_specific<Local> locals([&] {
+      return Local{std::vector<float>(kBatch * dim), std::vector<EmbeddingView>(kBatch), std::vector<QueryMatch>(kBatch)};
+    });
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, index.size(), kBatch), [&](const auto& range) {
+      Local& local = locals.local();
+      for (std::size_t begin = range.begin(); begin < range.end(); begin += kBatch) {
+        const std::size_t n = std::min(kBatch, range.end() - begin);
+        // Entries are read where the submaps store them (fp16); only shared cells get a mean.
+        for (std::size_t j = 0; j < n; ++j) {
+          const IndexedVoxel v = index.read(begin + j, local.means.data() + j * dim);
+          local.rows[j] = v.embedding;
+          out[begin + j] = {v.cell, v.position_world, v.count, {}};
+        }
+        classifier.classify_views(local.rows.data(), n, local.matches.data());
+        for (std::size_t j = 0; j < n; ++j) out[begin + j].match = local.matches[j];
+      }
+    });
+  });
+  return out;
+}
+
+void sort_by_cell(std::vector<ClassifiedCell>& cells) {
+  tbb::parallel_sort(cells.begin(), cells.end(), [](const ClassifiedCell& a, const ClassifiedCell& b) { return a.cell < b.cell; });
+}
+
+std::vector<PointQuery> query_points(const SemanticMap& map, std::span<const Vec3d> points_world,
+                                     const QuerySet* queries, const ClassifyOptions& options, ModelIdCheck model_check) {
+  std::optional<QueryClassifier> classifier;
+  if (queries) {
+    check_compatible(*queries, map.params().semantic.dim, map.info().model_id, model_check);
+    classifier.emplace(*queries, options);
+  }
+  const auto dim = static_cast<std::size_t>(map.params().semantic.dim);
+  std::vector<PointQuery> out(points_world.size());
+  map.read_index([&](const GlobalIndex& index) {
+    std::vector<float> scratch(dim);
+    for (std::size_t i = 0; i < points_world.size(); ++i) {
+      PointQuery& q = out[i];
+      q.point_world = points_world[i];
+      if (!points_world[i].allFinite()) continue;
+      const auto v = index.read_at(points_world[i], scratch.data());
+      if (!v) continue;
+      q.found = true;
+      q.cell = v->cell;
+      q.cell_centre = v->position_world;
+      q.count = v->count;
+      q.entries = v->entries;
+      q.embedding.resize(dim);
+      kernels::decode(v->embedding, q.embedding.data(), dim);
+      if (classifier) {
+        QueryMatch m;
+        classifier->classify(q.embedding.data(), 1, &m);
+        q.match = m;
+      }
+    }
+  });
+  return out;
+}
+
+}  // namespace slamvdb

@@ -1,0 +1,74 @@
+#pragma once
+// Retrieval over the map (paper section 6.2.5): every question reads the map through its global
+// index (world frame, count-weighted across submaps), as matrix products over the index's cells
+// rather than one look-up per voxel: similarity search with one query vector (raw, text, image or
+// composite), classification of every cell against a query set, and questions about given points.
+#include <Eigen/Core>
+#include <limits>
+#include <optional>
+#include <span>
+#include <vector>
+
+#include "slamvdb/map/semantic_map.hpp"
+#include "slamvdb/query/query_classifier.hpp"
+#include "slamvdb/query/query_set.hpp"
+
+namespace slamvdb {
+
+// One cell of the index with its cosine similarity to a query.
+struct ScoredCell {
+  IndexCellKey cell;
+  Vec3d position_world;  // cell centre
+  float score = 0.f;     // cosine similarity, -1..1
+  uint32_t count = 0;    // observations fused into the cell
+};
+
+struct SearchOptions {
+  std::size_t top_k = 0;                                     // 0: every cell above the threshold
+  float threshold = -std::numeric_limits<float>::infinity();  // keep cells with score >= threshold
+};
+
+// Cells by decreasing similarity with `query` (any norm; dim = the map's), ties by cell key. Cells
+// whose embedding is zero or not finite have no similarity and are left out. Parallel (TBB).
+// Throws Error on a query of the wrong dimension or a zero / non-finite query.
+std::vector<ScoredCell> similarity_search(const SemanticMap& map, std::span<const float> query,
+                                          const SearchOptions& options = {});
+
+// One cell of the index classified against a query set.
+struct ClassifiedCell {
+  IndexCellKey cell;
+  Vec3d position_world;
+  uint32_t count = 0;
+  QueryMatch match;  // class (into the query set), cosine score, margin to the runner-up
+};
+
+// Every semantic cell of the map, at its position in the index (result i is GlobalIndex cell i;
+// sort_by_cell gives the order outputs are written in). Checks the query set against the map
+// (dimension, and model id unless `model_check` is kIgnore).
+std::vector<ClassifiedCell> classify_map(const SemanticMap& map, const QuerySet& queries,
+                                         const ClassifyOptions& options = {},
+                                         ModelIdCheck model_check = ModelIdCheck::kRequireMatch);
+
+// Cell-key order: the same map always gives the same list, whatever the history of its index.
+void sort_by_cell(std::vector<ClassifiedCell>& cells);
+
+// What the map holds at a world point.
+struct PointQuery {
+  Vec3d point_world;
+  bool found = false;         // false: no semantic cell there
+  IndexCellKey cell;
+  Vec3d cell_centre = Vec3d::Zero();
+  uint32_t count = 0;
+  uint32_t entries = 0;       // submap entries averaged into the cell
+  std::vector<float> embedding;  // the cell's count-weighted mean, fp32
+  std::optional<QueryMatch> match;  // with a query set
+};
+
+std::vector<PointQuery> query_points(const SemanticMap& map, std::span<const Vec3d> points_world,
+                                     const QuerySet* queries = nullptr, const ClassifyOptions& options = {},
+                                     ModelIdCheck model_check = ModelIdCheck::kRequireMatch);
+
+// The map's embedding-space check for a vector that did not come from a query set.
+void check_query_vector(const SemanticMap& map, std::span<const float> query);
+
+}  // namespace slamvdb
