@@ -150,6 +150,9 @@ void add(CLI::App& root) {
   cmd->add_option("--feature-size", opt->feature_size, "Simulated feature map size WIDTHxHEIGHT")->capture_default_str();
   cmd->add_option("--sim-seed", opt->sim.seed, "Seed of the simulated encoder")->capture_default_str();
   cmd->add_option("--sim-confusion", opt->sim.confusion_rate, "Simulated per-view confusion rate")->capture_default_str();
+  cmd->add_option("--sim-related-confusion", opt->sim.related_confusion,
+                  "Simulated share of confusions that pick a class of the same coarse class")
+      ->capture_default_str();
   cmd->add_option("--queue", opt->pipeline.queue_capacity, "Inference queue length")->capture_default_str();
   cmd->add_flag("--realtime", opt->realtime,
                 "Drop (and count) frames that find the inference queue full, as on a robot; default: replay every frame");

