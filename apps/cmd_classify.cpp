@@ -6,6 +6,7 @@
 #include <fstream>
 
 #include "command_registry.hpp"
+#include "demo_outputs.hpp"
 #include "feature_options.hpp"
 #include "slamvdb/query/map_query.hpp"
 #include "slamvdb/store/map_store.hpp"
@@ -43,15 +44,7 @@ void run(const Options& opt) {
                cells.empty() ? 0.0 : 100.0 * per_class[k] / cells.size());
   if (unclassified) fmt::print("| (no class: zero embedding) | {} | |\n", unclassified);
   if (!opt.csv.empty()) {
-    std::ofstream out(opt.csv, std::ios::binary);
-    out << "x,y,z,class,score,margin,count\n";
-    for (const ClassifiedCell& c : cells) {
-      const Vec3d& p = c.position_world;
-      const std::string name = c.match.class_index == kNoClass ? "" : queries.names[c.match.class_index];
-      out << fmt::format("{:.3f},{:.3f},{:.3f},{},{:.6f},{:.6f},{}\n", p.x(), p.y(), p.z(), name, c.match.score,
-                         c.match.margin, c.count);
-    }
-    if (!out.flush()) throw Error(fmt::format("cannot write {}", opt.csv));
+    write_classified_csv(opt.csv, cells, queries);
     fmt::print("CSV  {}: {} rows\n", opt.csv, cells.size());
   }
 }

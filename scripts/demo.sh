@@ -1,14 +1,9 @@
 #!/usr/bin/env bash
-# The main job on built-in defaults: install + build, generate the default SIMULATED sequence,
-# map it, and export pictures. Everything lands in out/ (override with OUT=...).
+# The main job on built-in defaults: install + build, then `slamvdb demo`: generate the default
+# SIMULATED drive, map it, train query vectors on its first half, classify the map, evaluate it on
+# the second half (paper Table 6.1) beside the per-image baseline, and write the pictures.
+# Everything lands in out/ (override with OUT=...).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 scripts/setup.sh
-OUT=${OUT:-out}
-BIN=build/slamvdb
-mkdir -p "$OUT"
-[ -f "$OUT/sequence/synth.json" ] || "$BIN" synth "$OUT/sequence" --force
-"$BIN" map "$OUT/sequence" -o "$OUT/map.svdb"
-"$BIN" info "$OUT/map.svdb"
-"$BIN" export "$OUT/map.svdb" --ply "$OUT/map.ply" --png "$OUT/map.png"
-echo "done: $OUT/map.svdb, $OUT/map.ply, $OUT/map.png"
+exec build/slamvdb demo "${OUT:-out}"
