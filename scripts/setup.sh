@@ -24,6 +24,7 @@ PACKAGES=(
   liboctomap-dev         # side-by-side occupancy benchmark baseline
   libtorch-dev libopenblas0-pthread  # TorchScript inference (+ fast BLAS)
   python3-torch python3-numpy        # tests trace small TorchScript models
+  pybind11-dev python3-dev python3-pytest  # the Python module and its tests
   libceres-dev libnanoflann-dev liblzf-dev  # localization: pose graph, ScanContext k-d tree, PCD binary_compressed
 )
 

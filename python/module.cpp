@@ -1,0 +1,245 @@
+// The `slamvdb` Python module (pybind11): load, build, query and save semantic maps from Python with
+// numpy arrays. A thin adapter: every call goes to the C++ library.
+#include <pybind11/eigen.h>
+#include <pybind11/functional.h>
+#include <pybind11/numpy.h>
+#include <pybind11/pybind11.h>
+#include <pybind11/stl.h>
+#include <pybind11/stl/filesystem.h>
+
+#include "slamvdb/core/error.hpp"
+#include "slamvdb/fusion/projective_fusion.hpp"
+#include "slamvdb/inference/simulated_encoders.hpp"
+#include "slamvdb/query/map_query.hpp"
+#include "slamvdb/store/map_store.hpp"
+#if SLAMVDB_WITH_TORCH
+#include "slamvdb/inference/torch_encoders.hpp"
+#endif
+
+namespace py = pybind11;
+using namespace slamvdb;
+
+namespace {
+
+using F32 = py::array_t<float, py::array::c_style | py::array::forcecast>;
+using F64 = py::array_t<double, py::array::c_style | py::array::forcecast>;
+
+Pose pose_from(const F64& m) {
+  if (m.ndim() != 2 || m.shape(0) != 4 || m.shape(1) != 4) throw Error("a pose is a 4 x 4 matrix");
+  Pose T;
+  for (int r = 0; r < 4; ++r)
+    for (int c = 0; c < 4; ++c) T.matrix()(r, c) = m.at(r, c);
+  return T;
+}
+
+std::vector<Vec3f> points_from(const F32& a) {
+  if (a.ndim() != 2 || a.shape(1) < 3) throw Error("points are an N x 3 (or N x 4) array");
+  std::vector<Vec3f> pts(static_cast<std::size_t>(a.shape(0)));
+  const auto r = a.unchecked<2>();
+  for (py::ssize_t i = 0; i < a.shape(0); ++i) pts[i] = Vec3f(r(i, 0), r(i, 1), r(i, 2));
+  return pts;
+}
+
+// Semantic cells of the map's global index in cell order: positions, embeddings, counts.
+py::tuple semantic_voxels(const SemanticMap& map) {
+  const auto dim = static_cast<py::ssize_t>(map.params().semantic.dim);
+  py::array_t<double> positions;
+  py::array_t<float> embeddings;
+  py::array_t<uint32_t> counts;
+  map.read_index([&](const GlobalIndex& index) {
+    const std::vector<std::size_t> order = index.order_by_key();
+    const auto n = static_cast<py::ssize_t>(order.size());
+    positions = py::array_t<double>({n, py::ssize_t{3}});
+    embeddings = py::array_t<float>({n, dim});
+    counts = py::array_t<uint32_t>(n);
+    auto p = positions.mutable_unchecked<2>();
+    auto c = counts.mutable_unchecked<1>();
+    float* e = embeddings.mutable_data();
+    std::vector<float> scratch(static_cast<std::size_t>(dim));
+    for (py::ssize_t i = 0; i < n; ++i) {
+      const IndexedVoxel v = index.read(order[static_cast<std::size_t>(i)], scratch.data());
+      for (int k = 0; k < 3; ++k) p(i, k) = v.position_world[k];
+      c(i) = v.count;
+      kernels::decode(v.embedding, e + i * dim, static_cast<std::size_t>(dim));
+    }
+  });
+  return py::make_tuple(positions, embeddings, counts);
+}
+
+py::tuple search(const SemanticMap& map, const F32& query, std::size_t top_k, std::optional<float> threshold) {
+  SearchOptions o;
+  o.top_k = top_k;
+  if (threshold) o.threshold = *threshold;
+  const auto found = similarity_search(map, {query.data(), static_cast<std::size_t>(query.size())}, o);
+  const auto n = static_cast<py::ssize_t>(found.size());
+  py::array_t<double> positions({n, py::ssize_t{3}});
+  py::array_t<float> scores(n);
+  py::array_t<uint32_t> counts(n);
+  auto p = positions.mutable_unchecked<2>();
+  for (py::ssize_t i = 0; i < n; ++i) {
+    for (int k = 0; k < 3; ++k) p(i, k) = found[i].position_world[k];
+    scores.mutable_at(i) = found[i].score;
+    counts.mutable_at(i) = found[i].count;
+  }
+  return py::make_tuple(positions, scores, counts);
+}
+
+py::dict classify(const SemanticMap& map, const QuerySet& queries, bool void_rule, bool ignore_model_id) {
+  ClassifyOptions o;
+  o.void_to_second_best = void_rule;
+  std::vector<ClassifiedCell> cells =
+      classify_map(map, queries, o, ignore_model_id ? ModelIdCheck::kIgnore : ModelIdCheck::kRequireMatch);
+  sort_by_cell(cells);
+  const auto n = static_cast<py::ssize_t>(cells.size());
+  py::array_t<double> positions({n, py::ssize_t{3}});
+  py::array_t<int32_t> classes(n);
+  py::array_t<float> scores(n), margins(n);
+  py::array_t<uint32_t> counts(n);
+  auto p = positions.mutable_unchecked<2>();
+  for (py::ssize_t i = 0; i < n; ++i) {
+    for (int k = 0; k < 3; ++k) p(i, k) = cells[i].position_world[k];
+    classes.mutable_at(i) = cells[i].match.class_index;
+    scores.mutable_at(i) = cells[i].match.score;
+    margins.mutable_at(i) = cells[i].match.margin;
+    counts.mutable_at(i) = cells[i].count;
+  }
+  py::dict d;
+  d["positions"] = positions, d["classes"] = classes, d["scores"] = scores, d["margins"] = margins;
+  d["counts"] = counts, d["names"] = queries.names;
+  return d;
+}
+
+py::dict at_points(const SemanticMap& map, const F64& points) {
+  if (points.ndim() != 2 || points.shape(1) != 3) throw Error("points are an N x 3 array");
+  std::vector<Vec3d> pts(static_cast<std::size_t>(points.shape(0)));
+  const auto r = points.unchecked<2>();
+  for (py::ssize_t i = 0; i < points.shape(0); ++i) pts[i] = Vec3d(r(i, 0), r(i, 1), r(i, 2));
+  const auto answers = query_points(map, pts);
+  const auto n = static_cast<py::ssize_t>(answers.size()), dim = static_cast<py::ssize_t>(map.params().semantic.dim);
+  py::array_t<bool> found(n);
+  py::array_t<uint32_t> counts(n);
+  py::array_t<float> embeddings({n, dim});
+  float* e = embeddings.mutable_data();
+  for (py::ssize_t i = 0; i < n; ++i) {
+    found.mutable_at(i) = answers[i].found;
+    counts.mutable_at(i) = answers[i].count;
+    for (py::ssize_t k = 0; k < dim; ++k) e[i * dim + k] = answers[i].found ? answers[i].embedding[k] : 0.0f;
+  }
+  py::dict d;
+  d["found"] = found, d["counts"] = counts, d["embeddings"] = embeddings;
+  return d;
+}
+
+// Fuses an H x W x C feature map (pixel-major, as the encoders produce) seen by a pinhole camera.
+py::dict fuse_features(SemanticMap& map, double stamp, const F32& features, const py::dict& camera,
+                       const F64& T_world_camera) {
+  if (features.ndim() != 3) throw Error("features are an H x W x C array");
+  FeatureMap f(static_cast<int>(features.shape(2)), static_cast<int>(features.shape(0)),
+               static_cast<int>(features.shape(1)));
+  std::copy_n(features.data(), f.data.size(), f.data.begin());
+  CameraModel cam;
+  cam.width = f.width, cam.height = f.height;
+  cam.fx = camera["fx"].cast<double>(), cam.fy = camera["fy"].cast<double>();
+  cam.cx = camera["cx"].cast<double>(), cam.cy = camera["cy"].cast<double>();
+  const Pose T = pose_from(T_world_camera);
+  ProjectiveFusion fusion;
+  FusionStats stats;
+  const bool active = map.update_active(stamp, [&](VoxelMap& v, const Pose& T_world_submap, std::span<const PlacedVoxelMap>) {
+    stats = fusion.fuse(v, f, cam, T_world_submap.inverse() * T, {}, T_world_submap);
+  });
+  py::dict d;
+  d["fused"] = active, d["voxels"] = stats.fused_voxels, d["pixels_used"] = stats.pixels_used;
+  d["pixels_nonfinite"] = stats.pixels_nonfinite, d["pixels_zero"] = stats.pixels_zero;
+  return d;
+}
+
+}  // namespace
+
+PYBIND11_MODULE(slamvdb, m) {
+  m.doc() = "slamvdb: open-vocabulary semantic voxel maps (Python API over the C++ library)";
+  py::register_exception<Error>(m, "Error");
+
+  py::class_<SemanticMap>(m, "Map",
+                          "A semantic voxel map: free-floating submaps read through a global index (world frame)")
+      .def(py::init([](double voxel_size, int dim, const std::string& precision, double submap_length,
+                       const std::string& model_id) {
+             MapParams p;
+             p.occupancy.voxel_size = voxel_size;
+             p.semantic = {dim, precision_from_string(precision)};
+             p.submap_length = submap_length;
+             return std::make_unique<SemanticMap>(p, MapInfo{model_id, "rellis3d", "python"});
+           }),
+           py::arg("voxel_size") = 0.25, py::arg("dim") = 512, py::arg("precision") = "fp16",
+           py::arg("submap_length") = 50.0, py::arg("model_id") = "")
+      .def_property_readonly("voxel_size", [](const SemanticMap& s) { return s.params().occupancy.voxel_size; })
+      .def_property_readonly("dim", [](const SemanticMap& s) { return s.params().semantic.dim; })
+      .def_property_readonly("model_id", [](const SemanticMap& s) { return s.info().model_id; })
+      .def_property_readonly("num_submaps", &SemanticMap::num_submaps)
+      .def_property_readonly("num_semantic_voxels", &SemanticMap::num_index_cells,
+                             "Semantic cells of the global index (world frame)")
+      .def("integrate_scan",
+           [](SemanticMap& s, double stamp, const F32& points, const F64& T_world_sensor) {
+             const auto st = s.integrate_scan(stamp, points_from(points), pose_from(T_world_sensor));
+             return py::dict(py::arg("points") = st.points, py::arg("dropped") = st.dropped(),
+                             py::arg("hits") = st.hit_updates, py::arg("misses") = st.miss_updates);
+           },
+           py::arg("stamp"), py::arg("points"), py::arg("T_world_sensor"),
+           "Integrate one LiDAR scan (N x 3 points in the sensor frame) at a pose")
+      .def("fuse_features", &fuse_features, py::arg("stamp"), py::arg("features"), py::arg("camera"),
+           py::arg("T_world_camera"),
+           "Fuse an H x W x C feature map; camera = {'fx', 'fy', 'cx', 'cy'} at the feature resolution")
+      .def("finish", &SemanticMap::finish_active_submap, "Store the submap being written (call before saving)")
+      .def("save", [](const SemanticMap& s, const std::filesystem::path& p) { save_map(p, s); })
+      .def("semantic_voxels", &semantic_voxels, "(positions N x 3, embeddings N x dim, counts N), in cell order")
+      .def("occupied_voxels",
+           [](const SemanticMap& s) {
+             std::vector<double> xyz;
+             const float threshold = s.params().occupancy.occupied_threshold;
+             const double cell = s.params().index_cell();
+             for (const WorldOccupancyCell& c : s.world_occupancy())
+               if (c.log_odds >= threshold)
+                 for (int k = 0; k < 3; ++k) xyz.push_back((c.cell[k] + 0.5) * cell);
+             py::array_t<double> a({static_cast<py::ssize_t>(xyz.size() / 3), py::ssize_t{3}});
+             std::copy(xyz.begin(), xyz.end(), a.mutable_data());
+             return a;
+           },
+           "Centres of the occupied world cells (all submaps combined), N x 3")
+      .def("search", &search, py::arg("query"), py::arg("top_k") = 100, py::arg("threshold") = py::none(),
+           "Cosine similarity with a query vector: (positions, scores, counts), best first")
+      .def("classify", &classify, py::arg("queries"), py::arg("void_rule") = true, py::arg("ignore_model_id") = false)
+      .def("at", &at_points, py::arg("points"), "What the map holds at world points (N x 3)");
+
+  m.def("load_map", [](const std::filesystem::path& p) { return std::make_unique<SemanticMap>(load_map(p)); },
+        py::arg("path"));
+
+  py::class_<QuerySet>(m, "QuerySet", "Named query vectors in one embedding space")
+      .def_static("load", &load_query_set, py::arg("path"))
+      .def_readonly("names", &QuerySet::names)
+      .def_readonly("model_id", &QuerySet::model_id)
+      .def_property_readonly("vectors", [](const QuerySet& q) { return Eigen::MatrixXf(q.vectors); });
+
+  m.def("composite_query",
+        [](const std::vector<Eigen::VectorXf>& positive, const std::vector<Eigen::VectorXf>& negative) {
+          return composite_query(positive, negative);
+        },
+        py::arg("positive"), py::arg("negative") = std::vector<Eigen::VectorXf>{},
+        "sum(positive) - sum(negative), each term normalised, normalised (paper Figure 6.2)");
+  m.def("simulated_text_embedding",
+        [](const std::string& text, int dim, uint64_t seed) {
+          SimulatedEncoderConfig c;
+          c.dim = dim, c.seed = seed;
+          const auto v = SimulatedTextEncoder(c).encode(text);
+          return Eigen::VectorXf(Eigen::Map<const Eigen::VectorXf>(v.data(), static_cast<Eigen::Index>(v.size())));
+        },
+        py::arg("text"), py::arg("dim") = 512, py::arg("seed") = 1,
+        "Text embedding from the SIMULATED text encoder (the space of maps built with simulated features)");
+#if SLAMVDB_WITH_TORCH
+  py::class_<TorchTextEncoder>(m, "TextEncoder", "A TorchScript CLIP text encoder (MODEL.pt with MODEL.json)")
+      .def(py::init([](const std::filesystem::path& p) { return std::make_unique<TorchTextEncoder>(p); }))
+      .def_property_readonly("model_id", &TorchTextEncoder::model_id)
+      .def("encode", [](TorchTextEncoder& e, const std::string& t) {
+        const auto v = e.encode(t);
+        return Eigen::VectorXf(Eigen::Map<const Eigen::VectorXf>(v.data(), static_cast<Eigen::Index>(v.size())));
+      });
+#endif
+}
