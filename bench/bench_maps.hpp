@@ -13,7 +13,8 @@ inline constexpr int kEntriesPerSubmap = 100000;  // 1.3 M entries of 512-d fp16
 // Thirteen submaps along a road, each a 100 k-voxel surface patch; neighbours overlap by a fifth,
 // so about a fifth of the 1.06 M index cells hold two entries (their count-weighted mean is
 // computed on read), as on real drives.
-inline std::unique_ptr<SemanticMap> make_indexed_map() {
+// overlap: the share of a submap its neighbour covers again.
+inline std::unique_ptr<SemanticMap> make_indexed_map(int submaps, double overlap) {
   MapParams params;
   params.semantic = {512, EmbeddingPrecision::kFloat16};
   auto map = std::make_unique<SemanticMap>(params);
@@ -23,7 +24,7 @@ inline std::unique_ptr<SemanticMap> make_indexed_map() {
     return static_cast<float>(static_cast<int32_t>(state >> 32)) * (0.05f / 2147483648.0f);
   };
   std::vector<float> e(512);
-  for (int s = 0; s < kSubmaps; ++s) {
+  for (int s = 0; s < submaps; ++s) {
     VoxelMap voxels(params);
     const int side = 316;  // 316^2 ~ 100 k
     for (int x = 0; x < side && static_cast<int>(voxels.semantics().size()) < kEntriesPerSubmap; ++x)
@@ -35,14 +36,20 @@ inline std::unique_ptr<SemanticMap> make_indexed_map() {
       }
     SubmapInfo info;
     info.id = s;
-    info.T_world_submap.translation() = Vec3d(s * side * 0.25 * 0.8, 0.0, 0.0);  // 20% overlap
+    info.T_world_submap.translation() = Vec3d(s * side * 0.25 * (1.0 - overlap), 0.0, 0.0);
     map->add_finished_submap(info, std::move(voxels));
   }
   return map;
 }
 
 inline SemanticMap& indexed_map() {
-  static const std::unique_ptr<SemanticMap> map = make_indexed_map();
+  static const std::unique_ptr<SemanticMap> map = make_indexed_map(kSubmaps, 0.2);
+  return *map;
+}
+
+// 1.0 M cells of one entry each (10 submaps side by side): the pure per-voxel cost.
+inline SemanticMap& disjoint_map() {
+  static const std::unique_ptr<SemanticMap> map = make_indexed_map(10, 0.0);
   return *map;
 }
 

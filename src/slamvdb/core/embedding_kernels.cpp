@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <vector>
 
 #include "slamvdb/core/half.hpp"
 
@@ -138,6 +139,24 @@ SLAMVDB_AVX2 void dot_norm_f16_avx2(const uint16_t* v, const float* q, std::size
   *dot = d, *norm2 = s;
 }
 
+SLAMVDB_AVX2 void dot_norm_pair_f16_avx2(const uint16_t* a, float wa, const uint16_t* b, float wb, const float* q,
+                                         std::size_t n, float* dot, float* norm2) {
+  const __m256 va = _mm256_set1_ps(wa), vb = _mm256_set1_ps(wb);
+  __m256 d0 = _mm256_setzero_ps(), s0 = _mm256_setzero_ps();
+  std::size_t i = 0;
+  for (; i + 8 <= n; i += 8) {
+    const __m256 x = _mm256_fmadd_ps(load_half8(a + i), va, _mm256_mul_ps(load_half8(b + i), vb));
+    d0 = _mm256_fmadd_ps(x, _mm256_loadu_ps(q + i), d0);
+    s0 = _mm256_fmadd_ps(x, x, s0);
+  }
+  float d = hsum(d0), s = hsum(s0);
+  for (; i < n; ++i) {
+    const float x = wa * _cvtsh_ss(a[i]) + wb * _cvtsh_ss(b[i]);
+    d += x * q[i], s += x * x;
+  }
+  *dot = d, *norm2 = s;
+}
+
 struct Dispatch {
   bool avx2;
   void (*half_to_float)(const uint16_t*, float*, std::size_t);
@@ -205,7 +224,19 @@ void dot_and_squared_norm(EmbeddingView v, const float* q, std::size_t n, float*
   if (v.precision == EmbeddingPrecision::kFloat16 && dispatch().avx2)
     return dot_norm_f16_avx2(static_cast<const uint16_t*>(v.data), q, n, dot, norm2);
   *dot = kernels::dot(v, q, n);
-  *norm2 = squared_norm(v, n);
+  *norm2 = squared_norm(v, n);  // fp32 (the submap being written, or a shared cell's mean): in cache
+}
+
+void dot_and_squared_norm(const CombinedView& v, const float* q, std::size_t n, float* dot, float* norm2) {
+  if (v.n == 1) return dot_and_squared_norm(v.view[0], q, n, dot, norm2);
+  const EmbeddingView &a = v.view[0], &b = v.view[1];
+  if (a.precision == EmbeddingPrecision::kFloat16 && b.precision == EmbeddingPrecision::kFloat16 && dispatch().avx2)
+    return dot_norm_pair_f16_avx2(static_cast<const uint16_t*>(a.data), v.weight[0],
+                                  static_cast<const uint16_t*>(b.data), v.weight[1], q, n, dot, norm2);
+  std::vector<float> x(n, 0.0f);
+  add_scaled(x.data(), a, v.weight[0], n);
+  add_scaled(x.data(), b, v.weight[1], n);
+  dot_and_squared_norm({x.data(), EmbeddingPrecision::kFloat32}, q, n, dot, norm2);
 }
 
 bool all_finite(const float* x, std::size_t n) {

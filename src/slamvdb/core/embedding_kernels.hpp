@@ -20,6 +20,14 @@ struct EmbeddingView {
   EmbeddingPrecision precision = EmbeddingPrecision::kFloat32;
 };
 
+// An embedding given as the weighted sum of one or two stored embeddings (an index cell that two
+// submaps share), for readers that combine them in registers instead of writing the mean out.
+struct CombinedView {
+  uint32_t n = 1;
+  EmbeddingView view[2];
+  float weight[2] = {1.0f, 0.0f};
+};
+
 namespace kernels {
 
 bool has_avx2_f16c();  // what the dispatcher chose (for logs and benchmarks)
@@ -41,6 +49,9 @@ float dot(EmbeddingView v, const float* q, std::size_t n);
 float squared_norm(EmbeddingView v, std::size_t n);
 // Both in one pass over v (a similarity search reads every stored embedding once).
 void dot_and_squared_norm(EmbeddingView v, const float* q, std::size_t n, float* dot, float* norm2);
+
+// The same for a combined view (two fp16 embeddings on the fast path).
+void dot_and_squared_norm(const CombinedView& v, const float* q, std::size_t n, float* dot, float* norm2);
 
 // True when all n values are finite.
 bool all_finite(const float* x, std::size_t n);

@@ -122,6 +122,28 @@ IndexedVoxel GlobalIndex::read(std::size_t i, float* scratch) const {
   return v;
 }
 
+GlobalIndex::Parts GlobalIndex::parts(std::size_t i, float* scratch) const {
+  const Cell& c = cells_[i];
+  Parts p;
+  if (c.refs.size() > 2) {
+    const IndexedVoxel v = read(i, scratch);
+    p.embedding.view[0] = v.embedding, p.count = v.count;
+    return p;
+  }
+  uint64_t total = 0;
+  for (std::size_t k = 0; k < c.refs.size(); ++k) {
+    const SemanticLayer& layer = *bindings_[c.refs[k].submap].layer;
+    p.embedding.view[k] = layer.embedding_of(c.refs[k].handle);
+    total += layer.count_of(c.refs[k].handle);
+  }
+  p.embedding.n = static_cast<uint32_t>(c.refs.size());
+  for (std::size_t k = 0; k < c.refs.size(); ++k)
+    p.embedding.weight[k] = static_cast<float>(static_cast<double>(bindings_[c.refs[k].submap].layer->count_of(c.refs[k].handle)) /
+                                     static_cast<double>(total));
+  p.count = static_cast<uint32_t>(std::min<uint64_t>(total, UINT32_MAX));
+  return p;
+}
+
 std::optional<IndexedVoxel> GlobalIndex::read_at(const Vec3d& p_world, float* scratch) const {
   if (!in_grid_extent(p_world * inv_cell_size_)) return std::nullopt;
   const auto it = cell_slot_.find(cell_of(p_world));

@@ -55,6 +55,15 @@ class GlobalIndex {
   // Cell i (0 <= i < size()), resolved. `scratch` (dim floats) receives the mean of a cell with
   // several entries; the view points into it then. Cells are in no particular order.
   IndexedVoxel read(std::size_t i, float* scratch) const;
+  // Cell i for readers that combine two entries themselves (in registers, without writing their
+  // mean anywhere): its entries and their count weights when it has one or two, else its mean in
+  // `scratch` as a single part. Most shared cells hold two entries (neighbouring submaps).
+  struct Parts {
+    CombinedView embedding;
+    uint32_t count = 0;
+  };
+  Parts parts(std::size_t i, float* scratch) const;
+
   // The cell at a world position, if it is not empty.
   std::optional<IndexedVoxel> read_at(const Vec3d& p_world, float* scratch) const;
   // Position of a cell in 0..size(), if it is not empty.

@@ -77,13 +77,14 @@ std::vector<ScoredCell> similarity_search(const SemanticMap& map, std::span<cons
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, index.size(), kGrain), [&](const auto& range) {
       Local& local = locals.local();
       for (std::size_t i = range.begin(); i != range.end(); ++i) {
-        const IndexedVoxel v = index.read(i, local.scratch.data());
+        const GlobalIndex::Parts v = index.parts(i, local.scratch.data());
         float dot, norm2;
         kernels::dot_and_squared_norm(v.embedding, q.data(), dim, &dot, &norm2);
         if (!(norm2 > 0) || !std::isfinite(norm2)) continue;
         const float score = dot / std::sqrt(norm2);
         if (!(score >= options.threshold)) continue;
-        local.best.offer({v.cell, v.position_world, score, v.count});
+        const IndexCellKey& cell = index.key(i);
+        local.best.offer({cell, center_of_key(cell, index.cell_size()), score, v.count});
       }
     });
     for (Local& local : locals) local.best.drain_into(out);
@@ -103,24 +104,26 @@ std::vector<ClassifiedCell> classify_map(const SemanticMap& map, const QuerySet&
     out.resize(index.size());
     constexpr std::size_t kBatch = 256;
     struct Local {
-      std::vector<float> means;  // one row per cell of the batch whose entries are averaged
-      std::vector<EmbeddingView> rows;
+      std::vector<float> means;  // one row per cell of the batch with more than two entries
+      std::vector<CombinedView> rows;
       std::vector<QueryMatch> matches;
     };
     tbb::enumerable_thread_specific<Local> locals([&] {
-      return Local{std::vector<float>(kBatch * dim), std::vector<EmbeddingView>(kBatch), std::vector<QueryMatch>(kBatch)};
+      return Local{std::vector<float>(kBatch * dim), std::vector<CombinedView>(kBatch), std::vector<QueryMatch>(kBatch)};
     });
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, index.size(), kBatch), [&](const auto& range) {
       Local& local = locals.local();
       for (std::size_t begin = range.begin(); begin < range.end(); begin += kBatch) {
         const std::size_t n = std::min(kBatch, range.end() - begin);
-        // Entries are read where the submaps store them (fp16); only shared cells get a mean.
+        // Entries are read where the submaps store them (fp16); a cell shared by two submaps is
+        // combined in registers, only cells of three or more get their mean written out.
         for (std::size_t j = 0; j < n; ++j) {
-          const IndexedVoxel v = index.read(begin + j, local.means.data() + j * dim);
+          const GlobalIndex::Parts v = index.parts(begin + j, local.means.data() + j * dim);
           local.rows[j] = v.embedding;
-          out[begin + j] = {v.cell, v.position_world, v.count, {}};
+          const IndexCellKey& cell = index.key(begin + j);
+          out[begin + j] = {cell, center_of_key(cell, index.cell_size()), v.count, {}};
         }
-        classifier.classify_views(local.rows.data(), n, local.matches.data());
+        classifier.classify_combined(local.rows.data(), n, local.matches.data());
         for (std::size_t j = 0; j < n; ++j) out[begin + j].match = local.matches[j];
       }
     });

@@ -36,7 +36,7 @@ class QueryClassifier {
   explicit QueryClassifier(const QuerySet& queries, ClassifyOptions options = {});
 
   int dim() const { return static_cast<int>(queries_.cols()); }
-  int num_classes() const { return static_cast<int>(queries_.rows()); }
+  int num_classes() const { return num_classes_; }
 
   // `embeddings`: rows x dim fp32, row-major, any norm. out[i] for row i. Parallel (TBB) over
   // chunks of rows; each row's result depends only on that row (same output for any thread count).
@@ -46,6 +46,9 @@ class QueryClassifier {
   // Rows wherever they are stored, fp16 or fp32 (a map's entries, read in place); single-threaded,
   // for callers that split the work themselves.
   void classify_views(const EmbeddingView* rows, std::size_t count, QueryMatch* out) const;
+  // Rows given as the weighted sum of one or two stored rows (an index cell shared by submaps),
+  // combined in registers.
+  void classify_combined(const CombinedView* rows, std::size_t count, QueryMatch* out) const;
 
   // Whether the AVX2 + FMA kernel runs (chosen at run time; the Eigen kernel otherwise).
   bool uses_avx2() const { return use_avx2_; }
@@ -56,8 +59,9 @@ class QueryClassifier {
   // The rule on rows x classes dot products (with unit queries) and the rows' squared norms.
   void decide(const float* dots, const float* norm2, std::size_t rows, QueryMatch* out) const;
 
-  QueryMatrix queries_;             // n x dim, unit rows
-  std::vector<uint8_t> candidate_;  // per class: may be the answer
+  QueryMatrix queries_;             // unit rows of the classes that may be the answer
+  std::vector<int> class_of_row_;   // row of queries_ -> class index
+  int num_classes_ = 0;
   bool use_avx2_ = false;
   bool use_f16c_ = false;
 };
