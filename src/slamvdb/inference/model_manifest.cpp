@@ -3,14 +3,13 @@
 #include <fmt/format.h>
 
 #include <cmath>
-#include <fstream>
 #include <limits>
 #include <nlohmann/json.hpp>
 #include <opencv2/imgproc.hpp>
 #include <set>
-#include <sstream>
 
 #include "slamvdb/core/error.hpp"
+#include "slamvdb/core/regular_file.hpp"
 
 namespace slamvdb {
 namespace {
@@ -186,16 +185,14 @@ ModelManifest load_model_manifest(const fs::path& model_or_manifest) {
   const fs::path manifest_path = model_or_manifest.extension() == ".json"
                                      ? model_or_manifest
                                      : fs::path(model_or_manifest).replace_extension(".json");
-  std::ifstream in(manifest_path, std::ios::binary);
-  if (!in) {
+  std::error_code ec;
+  if (!fs::exists(manifest_path, ec) && !ec) {
     throw Error(
         fmt::format("model manifest {} not found (every MODEL.pt needs its MODEL.json beside it; "
                     "tools/export_lseg.py and tools/export_clip.py write both)",
                     manifest_path.string()));
   }
-  std::ostringstream text;
-  text << in.rdbuf();
-  return parse_model_manifest(text.str(), manifest_path);
+  return parse_model_manifest(read_regular_file(manifest_path, "model manifest", kMaxManifestBytes), manifest_path);
 }
 
 ResizePlan plan_resize(cv::Size image, const ImageInputSpec& spec, const std::string& source) {
