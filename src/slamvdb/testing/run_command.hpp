@@ -7,6 +7,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <atomic>
 #include <chrono>
 #include <filesystem>
 #include <fstream>
@@ -29,7 +30,7 @@ struct CommandResult {
 // `/bin/sh -c command`; start the command with `exec` so that a signal that kills the program is
 // seen here, not hidden by the shell.
 inline CommandResult run_command(const std::string& command, double timeout_seconds = 120.0) {
-  static int counter = 0;
+  static std::atomic<int> counter{0};
   const std::filesystem::path log = std::filesystem::temp_directory_path() /
                                     ("slamvdb_run_" + std::to_string(::getpid()) + "_" + std::to_string(counter++));
   posix_spawn_file_actions_t actions;
