@@ -24,6 +24,7 @@ PACKAGES=(
   liboctomap-dev         # side-by-side occupancy benchmark baseline
   libtorch-dev libopenblas0-pthread  # TorchScript inference (+ fast BLAS)
   python3-torch python3-numpy        # tests trace small TorchScript models
+  clang libclang-rt-14-dev           # sanitizer build (ASan + UBSan) and libFuzzer harnesses (scripts/fuzz.sh)
 )
 
 if [ "${SLAMVDB_SKIP_APT:-0}" != "1" ]; then

@@ -110,6 +110,9 @@ TEST(ReaderHardening, NonFinitePosesAndStampsAreErrorsWithFileAndLine) {
   expect_mentions(error_of([&] { read_kitti_poses(tmp.path / "poses.txt"); }), {"poses.txt:3", "'nan'", "finite"});
   std::ofstream(tmp.path / "poses.txt") << "1 0 0 1e400 0 1 0 0 0 0 1 0\n";
   expect_mentions(error_of([&] { read_kitti_poses(tmp.path / "poses.txt"); }), {"poses.txt:1", "1e400"});
+  // Finite but absurd: 4.3e9 m overflowed the 32-bit voxel keys (found by the damage property test).
+  std::ofstream(tmp.path / "poses.txt") << "1 0 0 0 0 1 0 0 0 0 1 0\n1 0 0 4294967296 0 1 0 0 0 0 1 0\n";
+  expect_mentions(error_of([&] { read_kitti_poses(tmp.path / "poses.txt"); }), {"poses.txt:2", "10000 km"});
   std::ofstream(tmp.path / "times.txt") << "0.1\ninf\n";
   expect_mentions(error_of([&] { read_stamps(tmp.path / "times.txt"); }), {"times.txt:2", "'inf'"});
   // A token quoted from the file is cut and its control characters escaped.

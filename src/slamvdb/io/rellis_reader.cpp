@@ -191,6 +191,7 @@ Pose read_rellis_transforms(const fs::path& file) {
     Pose T_lidar_camera = Pose::Identity();
     T_lidar_camera.linear() = rotation.normalized().toRotationMatrix();
     T_lidar_camera.translation() = Vec3d(number(t, "t", "x"), number(t, "t", "y"), number(t, "t", "z"));
+    check_pose_translation(T_lidar_camera.translation(), fmt::format("{}:{}", file.string(), t.Mark().line + 1));
     return T_lidar_camera;
   } catch (const YAML::Exception& e) {
     throw Error(fmt::format("cannot read camera-LiDAR extrinsics {}: {}", file, e.what()));

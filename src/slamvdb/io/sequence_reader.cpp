@@ -79,6 +79,13 @@ std::vector<NumberRow> read_number_rows(const std::filesystem::path& file, std::
   return rows;
 }
 
+void check_pose_translation(const Vec3d& t, std::string_view where) {
+  if (!(t.norm() <= kMaxPoseTranslation))
+    throw Error(fmt::format("{}: the translation ({:.6g}, {:.6g}, {:.6g}) is {:.3g} m from the origin, beyond the "
+                            "{:.0f} km a pose may be",
+                            where, t.x(), t.y(), t.z(), t.norm(), kMaxPoseTranslation / 1e3));
+}
+
 Pose rigid_from_3x4(const Eigen::Matrix<double, 3, 4>& matrix, std::string_view where) {
   const Eigen::Matrix3d R = matrix.leftCols<3>();
   const double orthogonality = (R * R.transpose() - Eigen::Matrix3d::Identity()).norm();
@@ -86,6 +93,7 @@ Pose rigid_from_3x4(const Eigen::Matrix<double, 3, 4>& matrix, std::string_view 
     throw Error(
         fmt::format("{} is not a rigid transform: its 3x3 part is no rotation (|R R^T - I| = {:.2g}, det {:.3g})",
                     where, orthogonality, R.determinant()));
+  check_pose_translation(matrix.col(3), where);
   const Eigen::JacobiSVD<Eigen::Matrix3d> svd(R, Eigen::ComputeFullU | Eigen::ComputeFullV);
   Pose T = Pose::Identity();
   T.linear() = svd.matrixU() * svd.matrixV().transpose();

@@ -59,10 +59,17 @@ std::vector<NumberRow> read_number_rows(const std::filesystem::path& file, std::
 std::vector<double> parse_numbers(std::string_view text, std::string_view where,
                                   std::size_t max_count = kMaxNumbersPerLine);
 
+// Largest distance of a pose from the origin: 10 000 km (UTM northings reach 9 300 km). Farther
+// poses are refused: no robot drives there, and it keeps every voxel a map can see inside the
+// 32-bit key range even at the smallest voxel size the CLI allows (0.01 m: +-21 000 km).
+inline constexpr double kMaxPoseTranslation = 1e7;
+
 // A rigid transform from [R | t]; R is snapped to the nearest rotation (text files carry 6-10
 // digits, and Pose's inverse assumes an exact rotation). Throws Error naming `where` if R is not
-// within 1e-3 of a rotation.
+// within 1e-3 of a rotation or t is farther than kMaxPoseTranslation.
 Pose rigid_from_3x4(const Eigen::Matrix<double, 3, 4>& matrix, std::string_view where);
+// Throws Error naming `where` if `t` is farther than kMaxPoseTranslation from the origin.
+void check_pose_translation(const Vec3d& t, std::string_view where);
 // One row-major 3x4 matrix [R | t] per line, as in KITTI's poses.txt.
 std::vector<Pose> read_kitti_poses(const std::filesystem::path& file);
 // One time stamp in seconds per line; throws Error naming the file unless strictly increasing.
