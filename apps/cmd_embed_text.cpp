@@ -7,7 +7,9 @@
 #include <nlohmann/json.hpp>
 
 #include "command_registry.hpp"
+#include "option_checks.hpp"
 #include "slamvdb/core/error.hpp"
+#include "slamvdb/core/text_escape.hpp"
 #include "slamvdb/inference/simulated_encoders.hpp"
 #include "slamvdb/io/npy.hpp"
 #ifdef SLAMVDB_WITH_TORCH
@@ -41,14 +43,15 @@ void run(const Options& opt) {
   const std::vector<float> v = encoder->encode(opt.text);
   if (!opt.out.empty()) {
     write_npy_array(opt.out, v.data(), {v.size()});
-    std::fprintf(stderr, "wrote %zu-d embedding of \"%s\" (%s) to %s\n", v.size(), opt.text.c_str(),
-                 encoder->model_id().c_str(), opt.out.c_str());
+    std::fprintf(stderr, "wrote %zu-d embedding of \"%s\" (%s) to %s\n", v.size(), escape_control(opt.text).c_str(),
+                 escape_control(encoder->model_id()).c_str(), escape_control(opt.out.string()).c_str());
     return;
   }
   if (opt.json) {
     const nlohmann::json j = {
         {"model_id", encoder->model_id()}, {"text", opt.text}, {"dim", v.size()}, {"embedding", v}};
-    std::printf("%s\n", j.dump().c_str());
+    // ASCII only (\uXXXX escapes): a model id from a manifest cannot carry terminal controls.
+    std::printf("%s\n", j.dump(-1, ' ', true, nlohmann::json::error_handler_t::replace).c_str());
   } else {
     std::printf("%s\n", fmt::format("{:.9g}", fmt::join(v, ",")).c_str());
   }
@@ -64,7 +67,8 @@ void add(CLI::App& root) {
   auto* model = cmd->add_option("--model", opt->model, "Text encoder model (.pt, or its .json manifest)");
   cmd->add_option("--out", opt->out, "Write the vector as a float32 .npy of shape (dim,) instead of printing it");
   cmd->add_flag("--json", opt->json, "Print {model_id, text, dim, embedding} as JSON instead of a CSV line");
-  cmd->add_option("--threads", opt->threads, "libtorch threads (default: the manifest's runtime.threads)");
+  cmd->add_option("--threads", opt->threads, "libtorch threads (default: the manifest's runtime.threads)")
+      ->check(integer_range(-1, bounds::kMaxThreads));
   cmd->add_flag("--simulated", opt->simulated, "Use the SIMULATED text encoder (for synthetic data only)")
       ->excludes(model);
   cmd->callback([opt] { run(*opt); });

@@ -8,6 +8,7 @@
 #include <optional>
 
 #include "command_registry.hpp"
+#include "option_checks.hpp"
 #include "progress.hpp"
 #include "slamvdb/core/error.hpp"
 #include "slamvdb/io/map_export.hpp"
@@ -85,7 +86,8 @@ void add(CLI::App& root) {
   cmd->add_option("--png", opt->png, "Write the bird's-eye picture to this .png file");
   cmd->add_flag("--ascii", opt->ascii, "Write the PLY as ASCII text instead of binary little endian");
   cmd->add_option("--resolution", opt->resolution,
-                  "Bird's-eye metres per pixel (default: the voxel size, coarser if the picture would exceed 2000 px)");
+                  "Bird's-eye metres per pixel (default: the voxel size, coarser if the picture would exceed 2000 px)")
+      ->check(finite_range(0, bounds::kMaxResolution));
   cmd->add_flag("--hillshade", opt->hill_shading, "Shade the bird's-eye picture by the terrain's relief");
   cmd->callback([opt] { run(*opt); });
 }

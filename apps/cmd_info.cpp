@@ -10,6 +10,7 @@
 #include <nlohmann/json.hpp>
 
 #include "command_registry.hpp"
+#include "slamvdb/core/text_escape.hpp"
 #include "slamvdb/store/map_store.hpp"
 
 namespace slamvdb::cli {
@@ -107,9 +108,10 @@ void print_text(const std::string& path, const MapFileSummary& s, const std::opt
              s.params.occupancy.voxel_size);
   fmt::print("semantics  {} semantic voxels, {}-d {} embeddings\n", s.semantic_voxels, s.params.semantic.dim,
              to_string(s.params.semantic.precision));
-  fmt::print("model      {}\n", s.info.model_id.empty() ? "(none)" : s.info.model_id);
-  fmt::print("ontology   {}\n", s.info.ontology);
-  fmt::print("source     {}\n", s.info.source.empty() ? "(not recorded)" : s.info.source);
+  // Text from the map file, printed with control characters escaped (core/text_escape.hpp).
+  fmt::print("model      {}\n", s.info.model_id.empty() ? "(none)" : escape_control(s.info.model_id));
+  fmt::print("ontology   {}\n", escape_control(s.info.ontology));
+  fmt::print("source     {}\n", s.info.source.empty() ? "(not recorded)" : escape_control(s.info.source));
   fmt::print("bytes      file {}, in memory {} (when saved)\n", megabytes(s.file_bytes), megabytes(s.memory_bytes));
   fmt::print("           on disk: occupancy {}, semantics {}", megabytes(s.occupancy_payload_bytes),
              megabytes(s.semantic_payload_bytes));
@@ -147,7 +149,7 @@ void add(CLI::App& root) {
     const MapFileSummary s = read_map_summary(opt->map);
     std::optional<WorldFigures> world;
     if (opt->check) world = read_world(opt->map);
-    if (opt->json) fmt::print("{}\n", to_json(opt->map, s, world).dump(2));
+    if (opt->json) fmt::print("{}\n", to_json(opt->map, s, world).dump(2, ' ', true, nlohmann::json::error_handler_t::replace));
     else print_text(opt->map, s, world);
   });
 }

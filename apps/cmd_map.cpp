@@ -7,8 +7,11 @@
 #include <regex>
 
 #include "command_registry.hpp"
+#include "map_option_checks.hpp"
+#include "option_checks.hpp"
 #include "progress.hpp"
 #include "slamvdb/core/error.hpp"
+#include "slamvdb/core/text_escape.hpp"
 #include "slamvdb/inference/simulated_encoders.hpp"
 #if SLAMVDB_WITH_TORCH
 #include "slamvdb/inference/torch_encoders.hpp"
@@ -32,6 +35,7 @@ struct Options {
   SimulatedEncoderConfig sim;
   bool realtime = false;
   std::string occlusion = "active";
+  double max_image_pixels = static_cast<double>(kDefaultMaxImagePixels);
 };
 
 std::array<double, 5> parse_distortion(const std::string& text) {
@@ -52,7 +56,7 @@ std::unique_ptr<FeatureSource> make_feature_source(const Options& opt, const Seq
     TorchEncoderOptions torch_options;
     torch_options.threads = opt.threads;
     auto encoder = std::make_unique<TorchDenseImageEncoder>(opt.model, torch_options);
-    fmt::print("network {}: {}-d features\n", encoder->model_id(), encoder->dim());
+    fmt::print("network {}: {}-d features\n", escape_control(encoder->model_id()), encoder->dim());
     return std::make_unique<EncoderFeatureSource>(std::move(encoder), EncoderFeatureSource::Input::kRgb);
 #else
     throw Error("this slamvdb was built without TorchScript support (SLAMVDB_WITH_TORCH=OFF)");
@@ -80,16 +84,15 @@ std::unique_ptr<FeatureSource> make_feature_source(const Options& opt, const Seq
 }
 
 void run(Options opt) {
-  if (opt.occlusion != "active" && opt.occlusion != "all")
-    throw Error(fmt::format("--occlusion '{}': expected active or all", opt.occlusion));
   opt.pipeline.fusion.occlusion_from_other_submaps = opt.occlusion == "all";
   opt.pipeline.map.validate();
   ReadOptions read_options;
   if (!opt.distortion.empty()) read_options.distortion = parse_distortion(opt.distortion);
+  read_options.max_image_pixels = static_cast<std::int64_t>(opt.max_image_pixels);
   const Sequence seq = read_sequence(opt.dataset, read_options);
   fmt::print("sequence {} ({} layout): {} scans, {} images\n", seq.root.string(), seq.layout, seq.scans.size(),
              seq.images.size());
-  for (const auto& note : seq.notes) fmt::print("  note: {}\n", note);
+  for (const auto& note : seq.notes) fmt::print("  note: {}\n", escape_control(note));
   opt.pipeline.map.semantic.precision = precision_from_string(opt.precision);
   opt.pipeline.policy = opt.realtime ? QueuePolicy::kDropWhenFull : QueuePolicy::kReplay;
   const auto source = make_feature_source(opt, seq);
@@ -101,7 +104,7 @@ void run(Options opt) {
     bar->update(done);
   });
   if (bar) bar->finish();
-  fmt::print("{}\n", report.summary());
+  fmt::print("{}\n", escape_control_keep_lines(report.summary()));
   save_map(opt.output, map);
   std::size_t semantic_bytes = 0;
   for (const SubmapInfo& info : map.submaps())
@@ -125,37 +128,68 @@ void add(CLI::App& root) {
                   "Where image features come from: 'simulated' (SIMULATED from the 2D label images, no network), "
                   "'model' (a TorchScript dense encoder, --model), 'precomputed' (features/<image>.npy, C x H x W), "
                   "'none' (geometry only)")
-      ->capture_default_str();
+      ->capture_default_str()
+      ->check(CLI::IsMember({"simulated", "model", "precomputed", "none"}));
   cmd->add_option("--model", opt->model, "TorchScript dense image encoder (MODEL.pt with MODEL.json beside it)");
-  cmd->add_option("--threads", opt->threads, "Network threads (-1: the manifest's setting)")->capture_default_str();
+  cmd->add_option("--threads", opt->threads, "Network threads (-1: the manifest's setting)")
+      ->capture_default_str()
+      ->check(integer_range(-1, bounds::kMaxThreads));
   auto& m = opt->pipeline.map;
-  cmd->add_option("--voxel-size", m.occupancy.voxel_size, "Voxel edge in metres")->capture_default_str();
+  cmd->add_option("--voxel-size", m.occupancy.voxel_size, "Voxel edge in metres (warns with a memory estimate below 0.1)")
+      ->capture_default_str()
+      ->check(finite_range(bounds::kMinVoxelSize, bounds::kMaxVoxelSize));
   cmd->add_option("--submap-length", m.submap_length,
                   "Start a new submap after this many metres of path (0: one submap for the whole run)")
-      ->capture_default_str();
+      ->capture_default_str()
+      ->check(finite_range(0, 1e6));
   cmd->add_option("--occlusion", opt->occlusion,
                   "Which voxels occlude during fusion: 'active' (the submap being written) or 'all' (also the "
                   "finished submaps near the camera)")
-      ->capture_default_str();
-  cmd->add_option("--dim", m.semantic.dim, "Embedding dimension")->capture_default_str();
-  cmd->add_option("--precision", opt->precision, "Embedding storage: fp16 or fp32")->capture_default_str();
-  cmd->add_option("--min-range", m.occupancy.min_point_range, "Drop returns closer than this (m)")->capture_default_str();
-  cmd->add_option("--max-range", m.occupancy.max_point_range, "Returns farther only clear space (m)")->capture_default_str();
+      ->capture_default_str()
+      ->check(CLI::IsMember({"active", "all"}));
+  cmd->add_option("--dim", m.semantic.dim, "Embedding dimension")
+      ->capture_default_str()
+      ->check(integer_range(1, bounds::kMaxDim));
+  cmd->add_option("--precision", opt->precision, "Embedding storage: fp16 or fp32")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"fp16", "fp32"}));
+  cmd->add_option("--min-range", m.occupancy.min_point_range, "Drop returns closer than this (m)")
+      ->capture_default_str()
+      ->check(finite_range(0, bounds::kMaxRange));
+  cmd->add_option("--max-range", m.occupancy.max_point_range, "Returns farther only clear space (m)")
+      ->capture_default_str()
+      ->check(finite_range(0, bounds::kMaxRange, true));
   cmd->add_option("--max-clearing-range", m.occupancy.max_clearing_range, "Clear space along the first metres of each ray")
-      ->capture_default_str();
+      ->capture_default_str()
+      ->check(finite_range(0, bounds::kMaxRange));
   cmd->add_option("--max-depth", opt->pipeline.fusion.max_depth, "Fuse features into voxels up to this distance (m)")
-      ->capture_default_str();
-  cmd->add_option("--max-scans", opt->pipeline.max_scans, "Map only the first N scans (0: all)")->capture_default_str();
+      ->capture_default_str()
+      ->check(finite_range(0, bounds::kMaxRange, true));
+  cmd->add_option("--max-scans", opt->pipeline.max_scans, "Map only the first N scans (0: all)")
+      ->capture_default_str()
+      ->check(integer_range(0, 1'000'000'000));
   cmd->add_option("--distortion", opt->distortion, "Camera plumb_bob coefficients 'k1 k2 p1 p2 k3' (overrides the dataset)");
   cmd->add_option("--feature-size", opt->feature_size, "Simulated feature map size WIDTHxHEIGHT")->capture_default_str();
   cmd->add_option("--sim-seed", opt->sim.seed, "Seed of the simulated encoder")->capture_default_str();
-  cmd->add_option("--sim-confusion", opt->sim.confusion_rate, "Simulated per-view confusion rate")->capture_default_str();
+  cmd->add_option("--sim-confusion", opt->sim.confusion_rate, "Simulated per-view confusion rate")
+      ->capture_default_str()
+      ->check(finite_range(0, 1));
   cmd->add_option("--sim-related-confusion", opt->sim.related_confusion,
                   "Simulated share of confusions that pick a class of the same coarse class")
-      ->capture_default_str();
-  cmd->add_option("--queue", opt->pipeline.queue_capacity, "Inference queue length")->capture_default_str();
+      ->capture_default_str()
+      ->check(finite_range(0, 1));
+  cmd->add_option("--queue", opt->pipeline.queue_capacity, "Inference queue length")
+      ->capture_default_str()
+      ->check(integer_range(1, bounds::kMaxQueue));
+  cmd->add_option("--max-image-pixels", opt->max_image_pixels,
+                  "Refuse camera and label images larger than this (from their headers, before decoding)")
+      ->capture_default_str()
+      ->check(finite_range(1, bounds::kMaxImagePixels));
   cmd->add_flag("--realtime", opt->realtime,
                 "Drop (and count) frames that find the inference queue full, as on a robot; default: replay every frame");
+  cmd->parse_complete_callback([opt] {
+    check_map_options(opt->pipeline, opt->features, opt->feature_size, opt->precision, opt->distortion, opt->output);
+  });
   cmd->callback([opt] { run(*opt); });
 }
 

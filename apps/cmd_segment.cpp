@@ -8,8 +8,12 @@
 #include <opencv2/imgproc.hpp>
 
 #include "command_registry.hpp"
+#include "option_checks.hpp"
 #include "slamvdb/core/error.hpp"
 #include "slamvdb/core/ontology.hpp"
+#include "slamvdb/core/text_escape.hpp"
+#include "slamvdb/io/atomic_file.hpp"
+#include "slamvdb/io/image_io.hpp"
 #include "slamvdb/inference/simulated_encoders.hpp"
 #include "slamvdb/io/npy.hpp"
 #ifdef SLAMVDB_WITH_TORCH
@@ -26,6 +30,7 @@ struct Options {
   std::string classes;
   int threads = -1;
   bool simulated = false;
+  double max_image_pixels = static_cast<double>(kDefaultMaxImagePixels);
 };
 
 struct Encoders {
@@ -96,17 +101,21 @@ cv::Mat best_class(const FeatureMap& features, const std::vector<std::vector<flo
   return labels;
 }
 
+void write_png_atomically(const fs::path& path, const cv::Mat& image) {
+  std::vector<uchar> png;
+  if (!cv::imencode(".png", image, png)) throw Error(fmt::format("cannot encode {}", path.string()));
+  write_file_atomically(path, std::string_view(reinterpret_cast<const char*>(png.data()), png.size()));
+}
+
 void run(const Options& opt) {
   const std::vector<std::string> names = parse_classes(opt.classes);
-  ImageFrame frame;
+  // Sized from the headers before decoding (a decompression bomb is refused), PNG or JPEG only.
+  ImageRecord record;
+  record.rgb = opt.image;
+  record.labels = opt.labels;
+  ImageFrame frame =
+      load_image_frame(record, true, !opt.labels.empty(), static_cast<std::int64_t>(opt.max_image_pixels));
   frame.source = opt.image.string();
-  const cv::Mat bgr = cv::imread(frame.source, cv::IMREAD_COLOR);
-  if (bgr.empty()) throw Error(fmt::format("cannot read image {}", frame.source));
-  cv::cvtColor(bgr, frame.rgb, cv::COLOR_BGR2RGB);
-  if (!opt.labels.empty()) {
-    frame.labels = cv::imread(opt.labels.string(), cv::IMREAD_UNCHANGED);
-    if (frame.labels.type() != CV_8UC1) throw Error(fmt::format("{} is not an 8-bit label image", opt.labels.string()));
-  }
 
   const Encoders enc = make_encoders(opt);
   if (enc.dense->dim() != enc.text->dim()) {
@@ -131,24 +140,20 @@ void run(const Options& opt) {
       const cv::Vec3b& rgb = colours[k];
       colour.at<cv::Vec3b>(y, x) = {rgb[2], rgb[1], rgb[0]};  // imwrite wants BGR
     }
-  if (!cv::imwrite((opt.out_dir / "labels.png").string(), labels) ||
-      !cv::imwrite((opt.out_dir / "classes.png").string(), colour)) {
-    throw Error(fmt::format("cannot write PNG images into {}", opt.out_dir.string()));
-  }
+  write_png_atomically(opt.out_dir / "labels.png", labels);
+  write_png_atomically(opt.out_dir / "classes.png", colour);
   std::string legend = "# index\tclass\tcolour\tpixels\tshare\n";
   const double total = static_cast<double>(labels.total());
   for (std::size_t k = 0; k < names.size(); ++k) {
     legend += fmt::format("{}\t{}\t#{:02x}{:02x}{:02x}\t{}\t{:.1f}%\n", k, names[k], colours[k][0], colours[k][1],
                           colours[k][2], counts[k], 100.0 * counts[k] / total);
   }
-  std::FILE* f = std::fopen((opt.out_dir / "legend.txt").c_str(), "w");
-  if (!f || std::fputs(legend.c_str(), f) < 0 || std::fclose(f) != 0) {
-    throw Error(fmt::format("cannot write {}", (opt.out_dir / "legend.txt").string()));
-  }
-  std::printf("%s: %d x %d x %d features (%s), best of %zu classes (%s) -> %s\n", frame.source.c_str(), features.dim,
-              features.height, features.width, enc.dense->model_id().c_str(), names.size(),
-              enc.text->model_id().c_str(), opt.out_dir.c_str());
-  std::fputs(legend.c_str(), stdout);
+  write_file_atomically(opt.out_dir / "legend.txt", legend);
+  // Model ids come from manifests, class names from the user: printed with control characters escaped.
+  std::printf("%s: %d x %d x %d features (%s), best of %zu classes (%s) -> %s\n", escape_control(frame.source).c_str(),
+              features.dim, features.height, features.width, escape_control(enc.dense->model_id()).c_str(),
+              names.size(), escape_control(enc.text->model_id()).c_str(), escape_control(opt.out_dir.string()).c_str());
+  std::fputs(escape_control_keep_lines(legend).c_str(), stdout);
 }
 
 void add(CLI::App& root) {
@@ -165,7 +170,12 @@ void add(CLI::App& root) {
   cmd->add_option("--classes", opt->classes, "Comma-separated class names, e.g. \"grass,tree,sky,dirt road\"")
       ->required();
   cmd->add_option("--out-dir", opt->out_dir, "Output directory (created if missing)")->required();
-  cmd->add_option("--threads", opt->threads, "libtorch threads (default: the manifests' runtime.threads)");
+  cmd->add_option("--threads", opt->threads, "libtorch threads (default: the manifests' runtime.threads)")
+      ->check(integer_range(-1, bounds::kMaxThreads));
+  cmd->add_option("--max-image-pixels", opt->max_image_pixels,
+                  "Refuse images larger than this (from their headers, before decoding)")
+      ->capture_default_str()
+      ->check(finite_range(1, bounds::kMaxImagePixels));
   auto* simulated = cmd->add_flag("--simulated", opt->simulated,
                                   "Use the SIMULATED encoders, which read the ground-truth --labels, not the image");
   simulated->excludes(model)->excludes(text);

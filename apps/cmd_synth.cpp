@@ -1,6 +1,7 @@
 // `slamvdb synth`: writes a SIMULATED off-road sequence (LiDAR scans, camera images, labels and
 // ground-truth poses) in the RELLIS-3D layout, for tests and demos without the real dataset.
 #include <fmt/format.h>
+#include <spdlog/spdlog.h>
 
 #include <chrono>
 #include <map>
@@ -10,6 +11,7 @@
 #include <regex>
 
 #include "command_registry.hpp"
+#include "option_checks.hpp"
 #include "progress.hpp"
 #include "slamvdb/core/error.hpp"
 #include "slamvdb/synth/sequence_writer.hpp"
@@ -17,8 +19,11 @@
 namespace slamvdb::cli {
 namespace {
 
+namespace fs = std::filesystem;
+
 struct Options {
   std::string out;
+  bool skip_space_check = false;
   synth::SynthConfig config;
   std::string image_size = "640x400";
   bool force = false;
@@ -31,6 +36,33 @@ void parse_image_size(const std::string& text, synth::SynthConfig& config) {
     throw Error(fmt::format("--image-size '{}' is not WIDTHxHEIGHT (e.g. 640x400)", text));
   config.image_width = std::stoi(m[1]);
   config.image_height = std::stoi(m[2]);
+}
+
+// Usage errors (exit code 2) before the world is built: the image size, and the output's size
+// against the free space where it goes.
+void check_synth_options(Options& opt) {
+  try {
+    parse_image_size(opt.image_size, opt.config);
+    opt.config.validate();
+  } catch (const Error& e) {
+    usage_error(e.what());
+  }
+  const auto& c = opt.config;
+  const double scans = c.length_m / c.speed_mps * c.lidar_rate_hz, images = c.length_m / c.speed_mps * c.camera_rate_hz;
+  // Measured on the defaults: a scan takes about 20 B per ray (points + labels, no-return rays dropped
+  // or not), a JPEG + label PNG about 0.5 B per pixel.
+  const double bytes = scans * c.lidar.beams * c.lidar.columns * 20.0 +
+                       images * static_cast<double>(c.image_width) * c.image_height * 0.5;
+  std::error_code ec;
+  fs::path existing = fs::absolute(opt.out);
+  while (!existing.empty() && !fs::exists(existing, ec) && existing != existing.parent_path())
+    existing = existing.parent_path();
+  const auto space = fs::space(existing, ec);
+  if (!ec && !opt.skip_space_check && bytes > static_cast<double>(space.available))
+    throw Error(fmt::format("the sequence would take about {:.1f} MB but {} has {:.1f} MB free (shorten --length)",
+                            bytes / 1e6, existing.string(), static_cast<double>(space.available) / 1e6));
+  if (bytes > 10e9)
+    spdlog::warn("the sequence will take about {:.0f} GB ({:.0f} scans, {:.0f} images)", bytes / 1e9, scans, images);
 }
 
 void run(const Options& opt) {
@@ -63,10 +95,14 @@ void add(CLI::App& root) {
   cmd->add_option("--seed", opt->config.seed, "Random seed; the same seed and settings give identical files")
       ->capture_default_str();
   cmd->add_option("--length", opt->config.length_m, "Driven path length in metres (a loop, revisited at its end)")
-      ->capture_default_str();
-  cmd->add_option("--speed", opt->config.speed_mps, "Vehicle speed in m/s")->capture_default_str();
+      ->capture_default_str()
+      ->check(finite_range(0, bounds::kMaxSynthLength, true));
+  cmd->add_option("--speed", opt->config.speed_mps, "Vehicle speed in m/s")
+      ->capture_default_str()
+      ->check(finite_range(0, 40, true));
   cmd->add_option("--camera-rate", opt->config.camera_rate_hz, "Camera frame rate in Hz (the LiDAR runs at 10 Hz)")
-      ->capture_default_str();
+      ->capture_default_str()
+      ->check(finite_range(0, 100, true));
   cmd->add_option("--image-size", opt->image_size, "Image size WIDTHxHEIGHT")->capture_default_str();
   cmd->add_option("--scene", opt->config.scene,
                   "offroad: the loop trail scene; repeated: one arrangement of objects repeated every "
@@ -85,6 +121,10 @@ void add(CLI::App& root) {
   cmd->add_flag("--keep-no-return", opt->config.keep_no_return,
                 "Write rays without a return as all-zero points, like the real sensor's files");
   cmd->add_flag("--force", opt->force, "Replace a sequence already in OUT_DIR");
+  cmd->add_flag("--skip-space-check", opt->skip_space_check,
+                "Write even if the estimated size exceeds the free space (the estimate can be wrong on compressing "
+                "file systems; a full disk still fails cleanly, leaving an incomplete sequence)");
+  cmd->parse_complete_callback([opt] { check_synth_options(*opt); });
   cmd->callback([opt] { run(*opt); });
 }
 

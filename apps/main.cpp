@@ -3,9 +3,11 @@
 
 #include <CLI/CLI.hpp>
 #include <exception>
+#include <new>
 
 #include "command_registry.hpp"
 #include "slamvdb/core/error.hpp"
+#include "slamvdb/core/text_escape.hpp"
 
 int main(int argc, char** argv) {
   CLI::App app{"slamvdb: open-vocabulary semantic voxel maps from LiDAR and camera"};
@@ -15,13 +17,19 @@ int main(int argc, char** argv) {
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
-    return app.exit(e);
+    // --help exits 0; every usage error (a bad, missing or unknown option or value) exits 2.
+    return app.exit(e) == 0 ? 0 : 2;
   } catch (const slamvdb::Error& e) {
-    spdlog::error("{}", e.what());
+    // Messages quote file names and file contents: printed with control characters escaped.
+    spdlog::error("{}", slamvdb::escape_control(e.what()));
+    return 1;
+  } catch (const std::bad_alloc&) {
+    spdlog::error("out of memory");
     return 1;
   } catch (const std::exception& e) {
-    spdlog::error("unexpected failure: {}", e.what());
-    return 2;
+    // Not a usage error either (e.g. a file system failure): a runtime error, exit code 1.
+    spdlog::error("{}", slamvdb::escape_control(e.what()));
+    return 1;
   }
   return 0;
 }

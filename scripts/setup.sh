@@ -26,6 +26,7 @@ PACKAGES=(
   python3-torch python3-numpy        # tests trace small TorchScript models
   pybind11-dev python3-dev python3-pytest  # the Python module and its tests
   libceres-dev libnanoflann-dev liblzf-dev  # localization: pose graph, ScanContext k-d tree, PCD binary_compressed
+  clang libclang-rt-14-dev           # sanitizer build (ASan + UBSan) and libFuzzer harnesses (scripts/fuzz.sh)
 )
 
 if [ "${SLAMVDB_SKIP_APT:-0}" != "1" ]; then

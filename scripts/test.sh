@@ -1,6 +1,9 @@
 #!/usr/bin/env bash
-# Installs + builds (Release), then runs every test (unit, integration, CLI) with CTest.
+# Installs + builds (Release), then runs every test (unit, integration, CLI) with CTest; then the
+# same tests under ASan + UBSan (clang, build-asan/), then every fuzz harness for 20 s.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 scripts/setup.sh
 ctest --test-dir build --output-on-failure -j"$(nproc)" --timeout 900
+scripts/test_asan.sh
+scripts/fuzz.sh 20

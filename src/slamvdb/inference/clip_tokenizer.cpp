@@ -1,5 +1,6 @@
 #include "slamvdb/inference/clip_tokenizer.hpp"
 
+#include <unistd.h>
 #include <zlib.h>
 
 #include <algorithm>
@@ -7,6 +8,7 @@
 #include <optional>
 
 #include "slamvdb/core/error.hpp"
+#include "slamvdb/core/regular_file.hpp"
 #include "slamvdb/inference/clip_text_clean.hpp"
 
 namespace slamvdb {
@@ -31,10 +33,16 @@ std::array<char32_t, 256> byte_symbols() {
 // The first `lines` lines of the gzip file (CLIP reads no further; the rest is never inflated).
 std::vector<std::string> read_gzip_lines(const std::filesystem::path& path, std::size_t lines) {
   std::error_code ec;
-  if (!std::filesystem::is_regular_file(path, ec))
-    throw Error("CLIP BPE vocabulary not found: " + path.string());
-  const std::unique_ptr<gzFile_s, int (*)(gzFile)> file(gzopen(path.c_str(), "rb"), gzclose);
-  if (!file) throw Error("cannot open CLIP BPE vocabulary " + path.string());
+  if (!std::filesystem::exists(path, ec) && !ec) throw Error("CLIP BPE vocabulary not found: " + path.string());
+  // Opened as a regular file (a FIFO is refused instead of blocking), then handed to zlib.
+  const RegularFile regular(path, "CLIP BPE vocabulary");
+  const int fd = ::dup(regular.fd());
+  if (fd < 0) throw Error("cannot open CLIP BPE vocabulary " + path.string());
+  const std::unique_ptr<gzFile_s, int (*)(gzFile)> file(gzdopen(fd, "rb"), gzclose);
+  if (!file) {
+    ::close(fd);
+    throw Error("cannot open CLIP BPE vocabulary " + path.string());
+  }
   std::string text;
   std::vector<std::string> out;
   std::array<char, 1 << 16> chunk;

@@ -3,14 +3,13 @@
 #include <fmt/format.h>
 
 #include <cmath>
-#include <fstream>
 #include <limits>
 #include <nlohmann/json.hpp>
 #include <opencv2/imgproc.hpp>
 #include <set>
-#include <sstream>
 
 #include "slamvdb/core/error.hpp"
+#include "slamvdb/core/regular_file.hpp"
 
 namespace slamvdb {
 namespace {
@@ -19,6 +18,9 @@ namespace fs = std::filesystem;
 using nlohmann::json;
 
 constexpr int kMaxSide = 16384;
+constexpr int kMaxDim = 4096;      // embedding dimension (CLIP / LSeg: 512; the largest CLIPs 1280)
+constexpr int kMaxThreads = 256;   // runtime.threads
+constexpr double kMaxTensorBytes = double(1 << 30);  // one input batch or one image's output, float32
 
 // Reads one JSON object of the manifest, remembering which keys were read so that anything left
 // over (a typo, a field of another kind) is reported instead of silently ignored.
@@ -121,7 +123,7 @@ ImageInputSpec read_image_input(Fields f) {
 
 OutputSpec read_output(Fields f, ModelKind kind) {
   OutputSpec s;
-  s.dim = f.integer("dim", 1, 1 << 16);
+  s.dim = f.integer("dim", 1, kMaxDim);
   if (kind == ModelKind::kDenseImage) {
     s.height = f.integer("height", 1, kMaxSide);
     s.width = f.integer("width", 1, kMaxSide);
@@ -174,11 +176,24 @@ ModelManifest parse_model_manifest(std::string_view json_text, const fs::path& m
   m.output = read_output(f.object("output"), m.kind);
   if (f.has("runtime")) {
     Fields r = f.object("runtime");
-    if (r.has("threads")) m.threads = r.integer("threads", 0, 1024);
+    if (r.has("threads")) m.threads = r.integer("threads", 0, kMaxThreads);
     if (r.has("batch_size")) m.batch_size = r.integer("batch_size", 1, 4096);
     r.expect_all_read();
   }
   f.expect_all_read();
+  // Sizes that could not be allocated are refused here, before the model is loaded.
+  const double output_bytes = 4.0 * m.output.dim * m.output.height * m.output.width;
+  if (m.kind == ModelKind::kDenseImage && output_bytes > kMaxTensorBytes)
+    throw Error(fmt::format("model manifest {}: output {} x {} x {} (dim x height x width) is {:.0f} MB of float32 per "
+                            "image, more than {:.0f} MB",
+                            manifest_path.string(), m.output.dim, m.output.height, m.output.width, output_bytes / 1e6,
+                            kMaxTensorBytes / 1e6));
+  const double input_bytes = 12.0 * m.batch_size * m.input.height * m.input.width;
+  if (m.kind != ModelKind::kText && input_bytes > kMaxTensorBytes)
+    throw Error(fmt::format("model manifest {}: a batch of {} inputs of 3 x {} x {} is {:.0f} MB of float32, more than "
+                            "{:.0f} MB (lower runtime.batch_size)",
+                            manifest_path.string(), m.batch_size, m.input.height, m.input.width, input_bytes / 1e6,
+                            kMaxTensorBytes / 1e6));
   return m;
 }
 
@@ -186,16 +201,14 @@ ModelManifest load_model_manifest(const fs::path& model_or_manifest) {
   const fs::path manifest_path = model_or_manifest.extension() == ".json"
                                      ? model_or_manifest
                                      : fs::path(model_or_manifest).replace_extension(".json");
-  std::ifstream in(manifest_path, std::ios::binary);
-  if (!in) {
+  std::error_code ec;
+  if (!fs::exists(manifest_path, ec) && !ec) {
     throw Error(
         fmt::format("model manifest {} not found (every MODEL.pt needs its MODEL.json beside it; "
                     "tools/export_lseg.py and tools/export_clip.py write both)",
                     manifest_path.string()));
   }
-  std::ostringstream text;
-  text << in.rdbuf();
-  return parse_model_manifest(text.str(), manifest_path);
+  return parse_model_manifest(read_regular_file(manifest_path, "model manifest", kMaxManifestBytes), manifest_path);
 }
 
 ResizePlan plan_resize(cv::Size image, const ImageInputSpec& spec, const std::string& source) {

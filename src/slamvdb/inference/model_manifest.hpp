@@ -3,6 +3,7 @@
 // network is, how to turn a camera image or a text into its input, and what it must output.
 // tools/export_lseg.py, export_clip.py and make_test_models.py write these files.
 #include <array>
+#include <cstdint>
 #include <filesystem>
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
@@ -51,13 +52,18 @@ struct ModelManifest {
   ImageInputSpec input;                             // dense_image, image
   TextInputSpec text;                               // text
   OutputSpec output;
-  int threads = 0;  // intra-op threads; 0 keeps the library's default
+  int threads = 0;  // intra-op threads, at most 256; 0 keeps the library's default
   int batch_size = 1;
 };
 
-// Accepts MODEL.pt or MODEL.json and reads MODEL.json. Every field is checked; a missing file,
-// malformed JSON, missing / mistyped / unknown / out-of-range field throws Error naming the file
-// and the field. The model file itself is not opened here.
+// Largest manifest read: 1 MiB (they are a few hundred bytes).
+inline constexpr std::uint64_t kMaxManifestBytes = std::uint64_t{1} << 20;
+
+// Accepts MODEL.pt or MODEL.json and reads MODEL.json (a regular file: a FIFO is an Error). Every
+// field is checked; a missing file, malformed JSON, missing / mistyped / unknown / out-of-range
+// field throws Error naming the file and the field, and so do sizes that cannot be allocated
+// (runtime.threads above 256, output.dim above 4096, more than 1 GiB of float32 per input batch
+// or per output image). The model file itself is not opened here.
 ModelManifest load_model_manifest(const std::filesystem::path& model_or_manifest);
 
 // The same from JSON text; `manifest_path` names the file in messages and anchors relative paths.

@@ -158,7 +158,7 @@ struct TorchDenseImageEncoder::Impl {
 };
 
 TorchDenseImageEncoder::TorchDenseImageEncoder(const fs::path& model_or_manifest, const TorchEncoderOptions& options)
-    : impl_(std::make_unique<Impl>(TorchModel(model_or_manifest, ModelKind::kDenseImage, options))) {
+    : impl_(new Impl{TorchModel(model_or_manifest, ModelKind::kDenseImage, options)}) {  // clang 14: no parenthesized aggregate init
   if (!options.warm_up) return;
   const FeatureMap map = impl_->encode_batch({impl_->model.warm_up_frame()}).front();
   impl_->model.expect_unit_vectors(
@@ -192,7 +192,7 @@ struct TorchImageEncoder::Impl {
 };
 
 TorchImageEncoder::TorchImageEncoder(const fs::path& model_or_manifest, const TorchEncoderOptions& options)
-    : impl_(std::make_unique<Impl>(TorchModel(model_or_manifest, ModelKind::kImage, options))) {
+    : impl_(new Impl{TorchModel(model_or_manifest, ModelKind::kImage, options)}) {
   if (!options.warm_up) return;
   std::vector<float> v = impl_->encode(impl_->model.warm_up_frame());
   impl_->model.expect_unit_vectors(torch::from_blob(v.data(), {1, static_cast<int64_t>(v.size())}), 1);

@@ -1,5 +1,6 @@
 #pragma once
 // A recorded (or synthetic) sequence as the mapping pipeline consumes it, whatever its layout.
+#include <cstdint>
 #include <filesystem>
 #include <optional>
 #include <string>
@@ -10,6 +11,11 @@
 #include "slamvdb/fusion/trajectory.hpp"
 
 namespace slamvdb {
+
+// Largest camera or label image decoded unless configured otherwise (ReadOptions::max_image_pixels,
+// `slamvdb map --max-image-pixels`): 100 megapixels, 40x RELLIS-3D's 2.3 MP camera. A 3-channel
+// image of that size takes 300 MB once decoded.
+inline constexpr std::int64_t kDefaultMaxImagePixels = 100'000'000;
 
 struct ScanRecord {
   double stamp = 0.0;
@@ -22,6 +28,9 @@ struct ImageRecord {
   std::filesystem::path rgb;       // may be empty
   std::filesystem::path labels;    // 2D label image (uint8 ids); may be empty
   std::filesystem::path features;  // precomputed C x H x W .npy; may be empty
+  // The size the rgb and label images must have (the camera's, which the calibration refers to);
+  // set by the sequence readers, checked from the file header before decoding. 0: not checked.
+  int width = 0, height = 0;
 };
 
 struct Sequence {

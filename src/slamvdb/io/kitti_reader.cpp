@@ -3,11 +3,12 @@
 #include <fmt/format.h>
 #include <fmt/std.h>
 
+#include <algorithm>
 #include <charconv>
-#include <fstream>
 #include <map>
 
 #include "slamvdb/core/error.hpp"
+#include "slamvdb/core/regular_file.hpp"
 #include "slamvdb/io/image_io.hpp"
 
 namespace slamvdb {
@@ -30,15 +31,17 @@ std::size_t frame_index(const fs::path& file, std::size_t frame_count, const fs:
 }  // namespace
 
 KittiCalib read_kitti_calib(const fs::path& file) {
-  require_exists(file, "KITTI calibration");
-  std::ifstream in(file);
+  const std::string text = read_regular_file(file, "KITTI calibration", kMaxNumberTextBytes);
   std::map<std::string, std::vector<double>> entries;
-  std::string line;
-  for (int line_no = 1; std::getline(in, line); ++line_no) {
+  std::size_t begin = 0;
+  for (int line_no = 1; begin < text.size(); ++line_no) {
+    const std::size_t newline = std::min(text.find('\n', begin), text.size());
+    const std::string_view line = std::string_view(text).substr(begin, newline - begin);
+    begin = newline + 1;
     const auto colon = line.find(':');
     if (colon == std::string::npos) continue;
-    entries[line.substr(0, colon)] =
-        parse_numbers(std::string_view(line).substr(colon + 1), fmt::format("{}:{}", file.string(), line_no));
+    entries[std::string(line.substr(0, colon))] =
+        parse_numbers(line.substr(colon + 1), fmt::format("{}:{}", file.string(), line_no));
   }
   const auto matrix = [&](std::initializer_list<const char*> keys) {
     for (const char* key : keys)
@@ -53,6 +56,13 @@ KittiCalib read_kitti_calib(const fs::path& file) {
   };
   KittiCalib calib;
   calib.P2 = matrix({"P2"});
+  // P2 = K [I | t] with K upper triangular, positive focal lengths and K(2,2) = 1 (a rectified
+  // camera): anything else would give a singular K and a non-finite camera pose.
+  const Eigen::Matrix3d K = calib.P2.leftCols<3>();
+  if (!(K(0, 0) > 0 && K(1, 1) > 0 && K(2, 2) > 0) || K(1, 0) != 0 || K(2, 0) != 0 || K(2, 1) != 0)
+    throw Error(fmt::format("{}: P2 is not a rectified camera projection K [I | t] (K upper triangular with positive "
+                            "fx, fy and K(2,2))",
+                            file));
   calib.T_cam0_velo = rigid_from_3x4(matrix({"Tr", "Tr_velo_to_cam"}), fmt::format("{}: Tr", file.string()));
   return calib;
 }
@@ -94,20 +104,27 @@ Sequence read_kitti_sequence(const fs::path& dir, const ReadOptions& options) {
   const KittiCalib calib = read_kitti_calib(dir / "calib.txt");
   const auto image_files = list_files(image_dir, ".png");
   if (image_files.empty()) throw Error(fmt::format("KITTI camera folder {} has no .png images", image_dir));
-  const cv::Size image_size = read_image_size(image_files.front());
+  // The size most images have: one damaged image must not change the camera model.
+  const cv::Size image_size = common_image_size(image_files, options.max_image_pixels,
+                                                fmt::format("camera images in {}", image_dir), seq.notes);
   seq.camera = kitti_camera(calib, image_size.width, image_size.height);
   apply_camera_options(seq, options);
   seq.T_lidar_camera = kitti_T_lidar_camera(calib);
+  if (!seq.T_lidar_camera.matrix().allFinite())
+    throw Error(fmt::format("{}: P2 and Tr give a non-finite camera pose (extreme values)", dir / "calib.txt"));
 
   std::size_t without_features = 0;
   for (const auto& file : image_files) {
     ImageRecord image{stamps[frame_index(file, stamps.size(), times_file)], file, {}, {}};
-    if (const fs::path features = feature_dir / (file.stem().string() + ".npy"); fs::exists(features))
+    image.width = image_size.width;
+    image.height = image_size.height;
+    std::error_code ec;  // an inaccessible feature file is reported when it is read
+    if (const fs::path features = feature_dir / (file.stem().string() + ".npy"); fs::exists(features, ec) || ec)
       image.features = features;
     without_features += image.features.empty();
     seq.images.push_back(std::move(image));
   }
-  if (fs::is_directory(feature_dir) && without_features > 0)
+  if (is_directory_or_throw(feature_dir) && without_features > 0)
     seq.notes.push_back(
         fmt::format("{} of {} images have no feature map in {}", without_features, image_files.size(), feature_dir));
 
@@ -116,7 +133,7 @@ Sequence read_kitti_sequence(const fs::path& dir, const ReadOptions& options) {
       throw Error(fmt::format("KITTI scan {} is out of sequence: expected frame {}", scan_files[i], i));
   seq.scans = scan_records(scan_files, stamps, label_dir, seq.notes);
 
-  if (const fs::path poses_file = dir / "poses.txt"; fs::exists(poses_file)) {
+  if (const fs::path poses_file = dir / "poses.txt"; exists_or_throw(poses_file)) {
     const auto cam0_poses = read_kitti_poses(poses_file);
     if (cam0_poses.size() != scan_files.size())
       throw Error(fmt::format("{} has {} poses but {} has {} scans (one pose per scan expected)", poses_file,

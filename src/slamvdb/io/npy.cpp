@@ -14,7 +14,6 @@
 #include <cerrno>
 #include <charconv>
 #include <cstring>
-#include <fstream>
 #include <functional>
 #include <limits>
 #include <numeric>
@@ -22,6 +21,9 @@
 
 #include "slamvdb/core/error.hpp"
 #include "slamvdb/core/half.hpp"
+#include "slamvdb/core/regular_file.hpp"
+#include "slamvdb/core/text_escape.hpp"
+#include "slamvdb/io/atomic_file.hpp"
 
 namespace slamvdb {
 
@@ -40,10 +42,13 @@ struct NpyHeader {
 // Value of `key` in the header's Python dict literal, up to the next top-level ',' or '}'.
 std::string dict_value(const std::string& dict, const std::string& key, const std::filesystem::path& path) {
   const auto k = dict.find("'" + key + "'");
-  if (k == std::string::npos) throw Error(fmt::format("npy file {}: header has no '{}': {}", path, key, dict));
-  auto colon = dict.find(':', k);
-  if (colon == std::string::npos) throw Error(fmt::format("npy file {}: malformed header {}", path, dict));
-  std::size_t begin = dict.find_first_not_of(' ', colon + 1), end = begin;
+  if (k == std::string::npos)
+    throw Error(fmt::format("npy file {}: header has no '{}': {}", path, key, escape_control(dict, 200)));
+  const auto colon = dict.find(':', k + key.size() + 2);
+  const auto begin = colon == std::string::npos ? std::string::npos : dict.find_first_not_of(' ', colon + 1);
+  if (begin == std::string::npos)
+    throw Error(fmt::format("npy file {}: header has no value for '{}': {}", path, key, escape_control(dict, 200)));
+  std::size_t end = begin;
   int depth = 0;
   for (; end < dict.size(); ++end) {
     const char c = dict[end];
@@ -51,6 +56,9 @@ std::string dict_value(const std::string& dict, const std::string& key, const st
     if (c == ')') --depth;
     if (depth == 0 && (c == ',' || c == '}')) break;
   }
+  if (end == begin)
+    throw Error(fmt::format("npy file {}: header has an empty value for '{}': {}", path, key,
+                            escape_control(dict, 200)));
   return dict.substr(begin, end - begin);
 }
 
@@ -58,15 +66,15 @@ NpyHeader parse_header(const std::string& dict, const std::filesystem::path& pat
   NpyHeader h;
   std::string descr = dict_value(dict, "descr", path);
   if (descr.size() < 2 || (descr.front() != '\'' && descr.front() != '"'))
-    throw Error(fmt::format("npy file {}: malformed dtype {}", path, descr));
+    throw Error(fmt::format("npy file {}: malformed dtype {}", path, escape_control(descr, 80)));
   h.descr = descr.substr(1, descr.size() - 2);
   const std::string fortran = dict_value(dict, "fortran_order", path);
   if (fortran != "False" && fortran != "True")
-    throw Error(fmt::format("npy file {}: malformed fortran_order {}", path, fortran));
+    throw Error(fmt::format("npy file {}: malformed fortran_order {}", path, escape_control(fortran, 80)));
   h.fortran_order = fortran == "True";
   const std::string shape = dict_value(dict, "shape", path);
   if (shape.size() < 2 || shape.front() != '(' || shape.back() != ')')
-    throw Error(fmt::format("npy file {}: malformed shape {}", path, shape));
+    throw Error(fmt::format("npy file {}: malformed shape {}", path, escape_control(shape, 80)));
   std::size_t pos = 1;
   while (pos < shape.size() - 1) {
     pos = shape.find_first_not_of(" ,", pos);
@@ -74,7 +82,8 @@ NpyHeader parse_header(const std::string& dict, const std::filesystem::path& pat
     std::size_t dim = 0;
     const auto [next, ec] = std::from_chars(shape.data() + pos, shape.data() + shape.size(), dim);
     if (ec != std::errc() || dim > static_cast<std::size_t>(std::numeric_limits<int>::max()))
-      throw Error(fmt::format("npy file {}: malformed shape {}", path, shape));
+      throw Error(fmt::format("npy file {}: malformed shape {}", path, escape_control(shape, 80)));
+    if (h.shape.size() == 32) throw Error(fmt::format("npy file {}: shape has more than 32 dimensions", path));
     h.shape.push_back(dim);
     pos = static_cast<std::size_t>(next - shape.data());
   }
@@ -106,20 +115,15 @@ void transpose(const unsigned char* src, float* dst, std::size_t rows, std::size
 class MappedFile {
  public:
   explicit MappedFile(const std::filesystem::path& path) {
-    const int fd = ::open(path.c_str(), O_RDONLY);
-    if (fd < 0) throw Error(fmt::format("cannot open npy file {}: {}", path, std::strerror(errno)));
-    struct stat st {};
-    if (::fstat(fd, &st) != 0) {
-      ::close(fd);
-      throw Error(fmt::format("cannot stat npy file {}: {}", path, std::strerror(errno)));
-    }
-    size_ = static_cast<std::size_t>(st.st_size);
+    const RegularFile file(path, "npy file");  // a FIFO or device is refused, nothing blocks
+    size_ = static_cast<std::size_t>(file.size());
+    if (size_ > kMaxNpyFileBytes)
+      throw Error(fmt::format("npy file {} is {} bytes, more than the limit of {} bytes", path, size_, kMaxNpyFileBytes));
     if (size_ > 0) {
-      void* p = ::mmap(nullptr, size_, PROT_READ, MAP_PRIVATE | MAP_POPULATE, fd, 0);
-      data_ = p == MAP_FAILED ? nullptr : static_cast<const unsigned char*>(p);
+      void* p = ::mmap(nullptr, size_, PROT_READ, MAP_PRIVATE | MAP_POPULATE, file.fd(), 0);
+      if (p == MAP_FAILED) throw Error(fmt::format("cannot map npy file {}: {}", path, std::strerror(errno)));
+      data_ = static_cast<const unsigned char*>(p);
     }
-    ::close(fd);
-    if (size_ > 0 && !data_) throw Error(fmt::format("cannot map npy file {}: {}", path, std::strerror(errno)));
   }
   ~MappedFile() {
     if (data_) ::munmap(const_cast<unsigned char*>(data_), size_);
@@ -161,7 +165,7 @@ void read_feature_npy(const std::filesystem::path& path, FeatureMap& map) {
     throw Error(
         fmt::format("npy file {}: dtype '{}' is not supported, expected little-endian float32 '<f4' "
                     "or float16 '<f2'",
-                    path, h.descr));
+                    path, escape_control(h.descr, 40)));
   if (h.fortran_order)
     throw Error(fmt::format("npy file {}: fortran_order arrays are not supported, save it C-ordered", path));
   std::vector<std::size_t> shape = h.shape;
@@ -205,16 +209,15 @@ void write_npy_array(const std::filesystem::path& path, const float* data, const
   header.append((64 - unpadded % 64) % 64, ' ');
   header.push_back('\n');
 
-  std::ofstream out(path, std::ios::binary | std::ios::trunc);
-  if (!out) throw Error(fmt::format("cannot create npy file {}", path));
+  AtomicFile out(path);  // a failed write (full disk, ...) leaves no partial .npy
   out.write(kMagic, kMagicSize);
   const unsigned char version_and_len[4] = {1, 0, static_cast<unsigned char>(header.size() & 0xff),
                                             static_cast<unsigned char>(header.size() >> 8)};
-  out.write(reinterpret_cast<const char*>(version_and_len), 4);
-  out << header;
+  out.write(version_and_len, 4);
+  out.write(header);
   const std::size_t count = std::accumulate(shape.begin(), shape.end(), std::size_t{1}, std::multiplies<>());
-  out.write(reinterpret_cast<const char*>(data), static_cast<std::streamsize>(count * sizeof(float)));
-  if (!out.flush()) throw Error(fmt::format("cannot write npy file {}", path));
+  out.write(data, count * sizeof(float));
+  out.commit();
 }
 
 void write_feature_npy(const std::filesystem::path& path, const FeatureMap& map) {

@@ -1,6 +1,7 @@
 #pragma once
 // NumPy .npy files for precomputed dense feature maps (C x H x W on disk, pixel-major in memory).
 #include <cstddef>
+#include <cstdint>
 #include <filesystem>
 #include <vector>
 
@@ -8,14 +9,19 @@
 
 namespace slamvdb {
 
+// Largest .npy feature file read: 1 GiB (a 512 x 128 x 192 float32 map is 50 MB).
+inline constexpr std::uint64_t kMaxNpyFileBytes = std::uint64_t{1} << 30;
+
 // Reads a little-endian, C-ordered float32 or float16 array of shape C x H x W or 1 x C x H x W
-// and transposes it to the pixel-major FeatureMap. Anything else throws Error naming the file.
+// and transposes it to the pixel-major FeatureMap. Anything else (including a path that is not a
+// regular file, or a file above kMaxNpyFileBytes) throws Error naming the file.
 FeatureMap read_feature_npy(const std::filesystem::path& path);
 // The same into `map`, reusing its storage: a caller reading one map per frame avoids faulting in
 // a fresh 50 MB buffer each time (that costs as much as the transpose).
 void read_feature_npy(const std::filesystem::path& path, FeatureMap& map);
 
-// Writes the map as a C x H x W float32 array.
+// Writes the map as a C x H x W float32 array. Writes are atomic (io/atomic_file.hpp): a failure
+// leaves no partial file, and an existing file is replaced only by a complete one.
 void write_feature_npy(const std::filesystem::path& path, const FeatureMap& map);
 
 // Writes a C-ordered float32 array of the given shape (format version 1.0).

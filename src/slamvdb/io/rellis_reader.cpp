@@ -10,6 +10,8 @@
 #include <map>
 
 #include "slamvdb/core/error.hpp"
+#include "slamvdb/core/regular_file.hpp"
+#include "slamvdb/core/text_escape.hpp"
 #include "slamvdb/io/image_io.hpp"
 
 namespace slamvdb {
@@ -36,14 +38,15 @@ struct StampedImage {
 std::vector<StampedImage> collect_images(const fs::path& dir, std::vector<std::string>& notes) {
   const fs::path rgb_dir = dir / kRellisImageDir, label_dir = dir / kRellisImageLabelDir,
                  feature_dir = dir / kFeatureDir;
-  if (!fs::is_directory(rgb_dir) && !fs::is_directory(label_dir))
+  const bool has_rgb_dir = is_directory_or_throw(rgb_dir), has_label_dir = is_directory_or_throw(label_dir);
+  if (!has_rgb_dir && !has_label_dir)
     throw Error(fmt::format("RELLIS-3D sequence {} has no camera images: neither {} nor {} is a directory", dir,
                             rgb_dir, label_dir));
   std::map<std::string, ImageRecord> by_stem;
-  if (fs::is_directory(rgb_dir))
+  if (has_rgb_dir)
     for (const char* ext : {".jpg", ".jpeg", ".png"})
       for (const auto& file : list_files(rgb_dir, ext)) by_stem[file.stem().string()].rgb = file;
-  if (fs::is_directory(label_dir))
+  if (has_label_dir)
     for (const auto& file : list_files(label_dir, ".png")) by_stem[file.stem().string()].labels = file;
 
   std::vector<StampedImage> images;
@@ -57,7 +60,8 @@ std::vector<StampedImage> collect_images(const fs::path& dir, std::vector<std::s
                       record.rgb.empty() ? record.labels : record.rgb));
     record.stamp = name->stamp;
     const fs::path features = feature_dir / (stem + ".npy");
-    if (fs::exists(features)) record.features = features;
+    std::error_code ec;  // an inaccessible feature file is reported when it is read
+    if (fs::exists(features, ec) || ec) record.features = features;
     without_rgb += record.rgb.empty();
     without_labels += record.labels.empty();
     without_features += record.features.empty();
@@ -70,11 +74,11 @@ std::vector<StampedImage> collect_images(const fs::path& dir, std::vector<std::s
   for (const auto& image : images) stamps.push_back(image.record.stamp);
   check_increasing(stamps, fmt::format("camera images in {} (stamps from the file names)", dir));
 
-  if (fs::is_directory(rgb_dir) && without_rgb > 0)
+  if (has_rgb_dir && without_rgb > 0)
     notes.push_back(fmt::format("{} of {} images have a label image but no camera image", without_rgb, images.size()));
-  if (fs::is_directory(label_dir) && without_labels > 0)
+  if (has_label_dir && without_labels > 0)
     notes.push_back(fmt::format("{} of {} images have no label image in {}", without_labels, images.size(), label_dir));
-  if (fs::is_directory(feature_dir) && without_features > 0)
+  if (is_directory_or_throw(feature_dir) && without_features > 0)
     notes.push_back(
         fmt::format("{} of {} images have no feature map in {}", without_features, images.size(), feature_dir));
   return images;
@@ -157,20 +161,37 @@ std::optional<RellisImageName> parse_rellis_image_name(std::string_view stem) {
 }
 
 Pose read_rellis_transforms(const fs::path& file) {
-  require_exists(file, "camera-LiDAR extrinsics");
   constexpr const char* kKey = "os1_cloud_node-pylon_camera_node";
+  const std::string text = read_regular_file(file, "camera-LiDAR extrinsics", kMaxYamlBytes);
   try {
-    const YAML::Node root = YAML::LoadFile(file.string());
+    const YAML::Node root = YAML::Load(text);
+    if (!root.IsMap()) throw Error(fmt::format("{} is not a YAML mapping with a '{}' entry", file, kKey));
     const YAML::Node entry = root[kKey];
-    if (!entry) throw Error(fmt::format("{} has no '{}' entry", file, kKey));
+    if (!entry || !entry.IsMap()) throw Error(fmt::format("{} has no '{}' entry", file, kKey));
     const YAML::Node q = entry["q"], t = entry["t"];
-    if (!q || !t) throw Error(fmt::format("{}: '{}' needs 'q' (w x y z) and 't' (x y z)", file, kKey));
-    Eigen::Quaterniond rotation(q["w"].as<double>(), q["x"].as<double>(), q["y"].as<double>(), q["z"].as<double>());
+    if (!q || !t || !q.IsMap() || !t.IsMap())
+      throw Error(fmt::format("{}: '{}' needs 'q' (w x y z) and 't' (x y z)", file, kKey));
+    // Every value finite: a NaN quaternion would give a NaN camera pose, and every voxel would then
+    // silently miss the image.
+    const auto number = [&](const YAML::Node& parent, const char* parent_key, const char* key) {
+      const YAML::Node v = parent[key];
+      if (!v) throw Error(fmt::format("{}: '{}.{}.{}' is missing", file, kKey, parent_key, key));
+      if (!v.IsScalar())
+        throw Error(fmt::format("{}:{}: '{}.{}' must be a number", file.string(), v.Mark().line + 1, parent_key, key));
+      double value = 0.0;
+      if (!YAML::convert<double>::decode(v, value) || !std::isfinite(value))
+        throw Error(fmt::format("{}:{}: '{}.{}' is '{}', not a finite number", file.string(), v.Mark().line + 1, parent_key,
+                                key, escape_control(v.Scalar(), 40)));
+      return value;
+    };
+    Eigen::Quaterniond rotation(number(q, "q", "w"), number(q, "q", "x"), number(q, "q", "y"), number(q, "q", "z"));
     if (std::abs(rotation.norm() - 1.0) > 1e-3)
-      throw Error(fmt::format("{}: quaternion q has norm {:.6f}, expected a unit quaternion", file, rotation.norm()));
+      throw Error(fmt::format("{}:{}: quaternion q has norm {:.6f}, expected a unit quaternion", file.string(),
+                              q.Mark().line + 1, rotation.norm()));
     Pose T_lidar_camera = Pose::Identity();
     T_lidar_camera.linear() = rotation.normalized().toRotationMatrix();
-    T_lidar_camera.translation() = Vec3d(t["x"].as<double>(), t["y"].as<double>(), t["z"].as<double>());
+    T_lidar_camera.translation() = Vec3d(number(t, "t", "x"), number(t, "t", "y"), number(t, "t", "z"));
+    check_pose_translation(T_lidar_camera.translation(), fmt::format("{}:{}", file.string(), t.Mark().line + 1));
     return T_lidar_camera;
   } catch (const YAML::Exception& e) {
     throw Error(fmt::format("cannot read camera-LiDAR extrinsics {}: {}", file, e.what()));
@@ -179,8 +200,9 @@ Pose read_rellis_transforms(const fs::path& file) {
 
 CameraModel read_rellis_camera_info(const fs::path& file, cv::Size image_size) {
   require_exists(file, "camera intrinsics");
-  const auto rows = read_number_rows(file);
-  if (rows.empty() || rows[0].size() != 4 || rows.size() > 2 || (rows.size() == 2 && rows[1].size() != 5))
+  const auto rows = read_number_rows(file, "camera intrinsics");
+  if (rows.empty() || rows[0].numbers.size() != 4 || rows.size() > 2 ||
+      (rows.size() == 2 && rows[1].numbers.size() != 5))
     throw Error(
         fmt::format("{} must hold 'fx fy cx cy' on its first line and optionally 'k1 k2 p1 p2 k3' on the "
                     "second",
@@ -188,11 +210,11 @@ CameraModel read_rellis_camera_info(const fs::path& file, cv::Size image_size) {
   CameraModel camera;
   camera.width = image_size.width;
   camera.height = image_size.height;
-  camera.fx = rows[0][0];
-  camera.fy = rows[0][1];
-  camera.cx = rows[0][2];
-  camera.cy = rows[0][3];
-  if (rows.size() == 2) std::copy(rows[1].begin(), rows[1].end(), camera.distortion.begin());
+  camera.fx = rows[0].numbers[0];
+  camera.fy = rows[0].numbers[1];
+  camera.cx = rows[0].numbers[2];
+  camera.cy = rows[0].numbers[3];
+  if (rows.size() == 2) std::copy(rows[1].numbers.begin(), rows[1].numbers.end(), camera.distortion.begin());
   return camera;
 }
 
@@ -206,15 +228,30 @@ Sequence read_rellis_sequence(const fs::path& dir, const ReadOptions& options) {
   if (scan_files.empty()) throw Error(fmt::format("RELLIS-3D scan folder {} has no .bin files", scan_dir));
 
   const auto images = collect_images(dir, seq.notes);
-  for (const auto& image : images) seq.images.push_back(image.record);
-  const auto& first = seq.images.front();
-  seq.camera =
-      read_rellis_camera_info(dir / "camera_info.txt", read_image_size(first.rgb.empty() ? first.labels : first.rgb));
+  // The camera's size is the one most images have (from their headers): one damaged image must
+  // not change the camera model; images of another size are refused when loaded.
+  std::vector<fs::path> rgb_files, label_files;
+  for (const auto& image : images) {
+    if (!image.record.rgb.empty()) rgb_files.push_back(image.record.rgb);
+    if (!image.record.labels.empty()) label_files.push_back(image.record.labels);
+  }
+  const cv::Size image_size =
+      rgb_files.empty()
+          ? common_image_size(label_files, options.max_image_pixels,
+                              fmt::format("label images in {}", dir / kRellisImageLabelDir), seq.notes)
+          : common_image_size(rgb_files, options.max_image_pixels,
+                              fmt::format("camera images in {}", dir / kRellisImageDir), seq.notes);
+  for (const auto& image : images) {
+    seq.images.push_back(image.record);
+    seq.images.back().width = image_size.width;
+    seq.images.back().height = image_size.height;
+  }
+  seq.camera = read_rellis_camera_info(dir / "camera_info.txt", image_size);
   apply_camera_options(seq, options);
   seq.T_lidar_camera = read_rellis_transforms(dir / "transforms.yaml");
 
   std::vector<double> stamps;
-  if (const fs::path times = dir / "times.txt"; fs::exists(times)) {
+  if (const fs::path times = dir / "times.txt"; exists_or_throw(times)) {
     stamps = read_stamps(times);
     if (stamps.size() != scan_files.size())
       throw Error(
@@ -225,7 +262,7 @@ Sequence read_rellis_sequence(const fs::path& dir, const ReadOptions& options) {
 
   seq.scans = scan_records(scan_files, stamps, label_dir, seq.notes);
 
-  if (const fs::path poses_file = dir / "poses.txt"; fs::exists(poses_file)) {
+  if (const fs::path poses_file = dir / "poses.txt"; exists_or_throw(poses_file)) {
     auto poses = read_kitti_poses(poses_file);
     if (poses.size() != scan_files.size())
       throw Error(fmt::format("{} has {} poses but {} has {} scans (one T_world_lidar per scan expected)", poses_file,

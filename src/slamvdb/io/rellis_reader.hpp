@@ -22,10 +22,14 @@ inline constexpr std::string_view kRellisScanLabelDir = "os1_cloud_node_semantic
 inline constexpr std::string_view kRellisImageDir = "pylon_camera_node";
 inline constexpr std::string_view kRellisImageLabelDir = "pylon_camera_node_label_id";
 
+// Largest transforms.yaml read: 1 MiB (it holds one transform).
+inline constexpr std::uint64_t kMaxYamlBytes = std::uint64_t{1} << 20;
+
 Sequence read_rellis_sequence(const std::filesystem::path& dir, const ReadOptions& options = {});
 
 // T_lidar_camera (the camera pose in the LiDAR frame) from the os1_cloud_node-pylon_camera_node
 // entry of transforms.yaml: q (w x y z) and t (x y z). Project LiDAR points with its inverse.
+// Every value must be a finite number and q a unit quaternion; errors name file:line.
 Pose read_rellis_transforms(const std::filesystem::path& file);
 
 // "fx fy cx cy" on the first line and optionally "k1 k2 p1 p2 k3" on the second; the intrinsics

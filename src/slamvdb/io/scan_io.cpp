@@ -5,25 +5,25 @@
 
 #include <bit>
 #include <cmath>
-#include <fstream>
 
 #include "slamvdb/core/error.hpp"
+#include "slamvdb/core/regular_file.hpp"
 
 namespace slamvdb {
 
 namespace {
 template <typename T>
 std::vector<T> read_records(const std::filesystem::path& path, std::size_t record_bytes, const char* what) {
-  std::error_code ec;
-  const auto bytes = std::filesystem::file_size(path, ec);
-  if (ec) throw Error(fmt::format("cannot read {} file {}: {}", what, path, ec.message()));
+  RegularFile file(path, fmt::format("{} file", what));
+  const std::uint64_t bytes = file.size();
+  if (bytes > kMaxScanFileBytes)
+    throw Error(fmt::format("{} file {} is {} bytes, more than the {} bytes ({} points) a scan may have", what, path,
+                            bytes, kMaxScanFileBytes, kMaxScanFileBytes / 16));
   if (bytes % record_bytes != 0)
     throw Error(fmt::format("{} file {} is truncated: {} bytes is not a multiple of {} bytes per point", what, path,
                             bytes, record_bytes));
-  std::vector<T> values(bytes / sizeof(T));
-  std::ifstream in(path, std::ios::binary);
-  if (!in.read(reinterpret_cast<char*>(values.data()), static_cast<std::streamsize>(bytes)))
-    throw Error(fmt::format("cannot read {} file {}", what, path));
+  std::vector<T> values(static_cast<std::size_t>(bytes) / sizeof(T));
+  file.read_exact(values.data(), static_cast<std::size_t>(bytes));
   return values;
 }
 }  // namespace

@@ -1,14 +1,19 @@
 #pragma once
 // LiDAR scans on disk: KITTI-style .bin (x y z intensity float32) and SemanticKITTI .label files.
 #include <cstddef>
+#include <cstdint>
 
 #include "slamvdb/core/types.hpp"
 #include "slamvdb/io/dataset.hpp"
 
 namespace slamvdb {
 
+// Largest scan file read: 256 MiB, 16.7 million points (an OS1-128 scan has 262 144).
+inline constexpr std::uint64_t kMaxScanFileBytes = std::uint64_t{256} << 20;
+
 // Reads the scan exactly as stored, including NaN and all-zero ("no return") points; an empty
-// file is a valid scan with 0 points. Throws Error on a truncated .bin or a label count mismatch.
+// file is a valid scan with 0 points. Throws Error on a truncated .bin, a label count mismatch,
+// a file above kMaxScanFileBytes, or a path that is not a regular file (a FIFO, ...).
 LidarScan read_scan(const ScanRecord& record);
 
 struct ScanFilterStats {

@@ -4,6 +4,8 @@
 #include <fmt/ranges.h>
 #include <fmt/std.h>
 
+#include <sys/stat.h>
+
 #include <Eigen/SVD>
 #include <algorithm>
 #include <charconv>
@@ -12,6 +14,8 @@
 #include <tuple>
 
 #include "slamvdb/core/error.hpp"
+#include "slamvdb/core/regular_file.hpp"
+#include "slamvdb/core/text_escape.hpp"
 #include "slamvdb/io/kitti_reader.hpp"
 #include "slamvdb/io/rellis_reader.hpp"
 
@@ -19,44 +23,67 @@ namespace slamvdb {
 
 Sequence read_sequence(const std::filesystem::path& dir, const ReadOptions& options) {
   require_exists(dir, "sequence directory");
-  if (std::filesystem::is_directory(dir / kRellisScanDir)) return read_rellis_sequence(dir, options);
-  if (std::filesystem::is_directory(dir / kKittiScanDir)) return read_kitti_sequence(dir, options);
+  std::error_code ec;
+  if (std::filesystem::exists(dir / kIncompleteMarker, ec) || std::filesystem::is_symlink(dir / kIncompleteMarker, ec))
+    throw Error(fmt::format("sequence {} is incomplete: it holds {}, left by a writer (slamvdb synth) that failed or "
+                            "was killed; write it again (synth --force)",
+                            dir, kIncompleteMarker));
+  if (is_directory_or_throw(dir / kRellisScanDir)) return read_rellis_sequence(dir, options);
+  if (is_directory_or_throw(dir / kKittiScanDir)) return read_kitti_sequence(dir, options);
   throw Error(
       fmt::format("{} is neither a RELLIS-3D sequence (no {}/ folder) nor a KITTI odometry sequence "
                   "(no {}/ folder)",
                   dir, kRellisScanDir, kKittiScanDir));
 }
 
-std::vector<double> parse_numbers(std::string_view text, std::string_view where) {
+std::vector<double> parse_numbers(std::string_view text, std::string_view where, std::size_t max_count) {
   std::vector<double> numbers;
   const char* p = text.data();
   const char* end = text.data() + text.size();
+  const auto is_space = [](char c) { return std::isspace(static_cast<unsigned char>(c)) != 0; };
   while (true) {
-    while (p != end && std::isspace(static_cast<unsigned char>(*p))) ++p;
+    while (p != end && is_space(*p)) ++p;
     if (p == end) break;
     double v = 0.0;
     const auto [next, ec] = std::from_chars(p, end, v);
-    if (ec != std::errc() || (next != end && !std::isspace(static_cast<unsigned char>(*next))) || !std::isfinite(v))
-      throw Error(fmt::format("{}: '{}' is not a number", where,
-                              std::string_view(p, std::find_if(p, end, [](char c) {
-                                                    return std::isspace(static_cast<unsigned char>(c));
-                                                  }) - p)));
+    if (ec != std::errc() || (next != end && !is_space(*next)) || !std::isfinite(v)) {
+      const std::string_view token(p, static_cast<std::size_t>(std::find_if(p, end, is_space) - p));
+      throw Error(fmt::format("{}: '{}' is not a {}number", where, escape_control(token, 40),
+                              ec == std::errc() && !std::isfinite(v) ? "finite " : ""));
+    }
+    if (numbers.size() == max_count)
+      throw Error(fmt::format("{}: more than {} numbers on one line", where, max_count));
     numbers.push_back(v);
     p = next;
   }
   return numbers;
 }
 
-std::vector<std::vector<double>> read_number_rows(const std::filesystem::path& file) {
-  std::ifstream in(file);
-  if (!in) throw Error(fmt::format("cannot open {}", file));
-  std::vector<std::vector<double>> rows;
-  std::string line;
-  for (int line_no = 1; std::getline(in, line); ++line_no) {
-    auto numbers = parse_numbers(line, fmt::format("{}:{}", file.string(), line_no));
-    if (!numbers.empty()) rows.push_back(std::move(numbers));
+void for_each_number_row(const std::filesystem::path& file, std::string_view what,
+                         const std::function<void(const NumberRow& row)>& row) {
+  const std::string text = read_regular_file(file, what, kMaxNumberTextBytes);
+  NumberRow current;
+  std::size_t begin = 0;
+  for (int line_no = 1; begin < text.size(); ++line_no) {
+    const std::size_t newline = std::min(text.find('\n', begin), text.size());
+    current.where = fmt::format("{}:{}", file.string(), line_no);
+    current.numbers = parse_numbers(std::string_view(text).substr(begin, newline - begin), current.where);
+    if (!current.numbers.empty()) row(current);
+    begin = newline + 1;
   }
+}
+
+std::vector<NumberRow> read_number_rows(const std::filesystem::path& file, std::string_view what) {
+  std::vector<NumberRow> rows;
+  for_each_number_row(file, what, [&](const NumberRow& row) { rows.push_back(row); });
   return rows;
+}
+
+void check_pose_translation(const Vec3d& t, std::string_view where) {
+  if (!(t.norm() <= kMaxPoseTranslation))
+    throw Error(fmt::format("{}: the translation ({:.6g}, {:.6g}, {:.6g}) is {:.3g} m from the origin, beyond the "
+                            "{:.0f} km a pose may be",
+                            where, t.x(), t.y(), t.z(), t.norm(), kMaxPoseTranslation / 1e3));
 }
 
 Pose rigid_from_3x4(const Eigen::Matrix<double, 3, 4>& matrix, std::string_view where) {
@@ -66,6 +93,7 @@ Pose rigid_from_3x4(const Eigen::Matrix<double, 3, 4>& matrix, std::string_view 
     throw Error(
         fmt::format("{} is not a rigid transform: its 3x3 part is no rotation (|R R^T - I| = {:.2g}, det {:.3g})",
                     where, orthogonality, R.determinant()));
+  check_pose_translation(matrix.col(3), where);
   const Eigen::JacobiSVD<Eigen::Matrix3d> svd(R, Eigen::ComputeFullU | Eigen::ComputeFullV);
   Pose T = Pose::Identity();
   T.linear() = svd.matrixU() * svd.matrixV().transpose();
@@ -74,29 +102,26 @@ Pose rigid_from_3x4(const Eigen::Matrix<double, 3, 4>& matrix, std::string_view 
 }
 
 std::vector<Pose> read_kitti_poses(const std::filesystem::path& file) {
-  const auto rows = read_number_rows(file);
   std::vector<Pose> poses;
-  poses.reserve(rows.size());
-  for (std::size_t i = 0; i < rows.size(); ++i) {
-    if (rows[i].size() != 12)
-      throw Error(
-          fmt::format("{}: pose {} has {} numbers, expected 12 (a row-major 3x4 matrix)", file, i, rows[i].size()));
-    poses.push_back(rigid_from_3x4(Eigen::Map<const Eigen::Matrix<double, 3, 4, Eigen::RowMajor>>(rows[i].data()),
-                                   fmt::format("{}: pose {}", file.string(), i)));
-  }
+  for_each_number_row(file, "pose file", [&](const NumberRow& row) {
+    if (row.numbers.size() != 12)
+      throw Error(fmt::format("{}: pose {} has {} numbers, expected 12 (a row-major 3x4 matrix)", row.where,
+                              poses.size(), row.numbers.size()));
+    poses.push_back(
+        rigid_from_3x4(Eigen::Map<const Eigen::Matrix<double, 3, 4, Eigen::RowMajor>>(row.numbers.data()),
+                       fmt::format("{} (pose {})", row.where, poses.size())));
+  });
   return poses;
 }
 
 std::vector<double> read_stamps(const std::filesystem::path& file) {
-  const auto rows = read_number_rows(file);
   std::vector<double> stamps;
-  stamps.reserve(rows.size());
-  for (std::size_t i = 0; i < rows.size(); ++i) {
-    if (rows[i].size() != 1)
-      throw Error(
-          fmt::format("{}: entry {} has {} numbers, expected one time stamp per line", file, i, rows[i].size()));
-    stamps.push_back(rows[i][0]);
-  }
+  for_each_number_row(file, "time stamp file", [&](const NumberRow& row) {
+    if (row.numbers.size() != 1)
+      throw Error(fmt::format("{}: entry {} has {} numbers, expected one time stamp per line", row.where,
+                              stamps.size(), row.numbers.size()));
+    stamps.push_back(row.numbers[0]);
+  });
   check_increasing(stamps, file.string());
   return stamps;
 }
@@ -111,10 +136,26 @@ void check_increasing(const std::vector<double>& stamps, std::string_view source
 }
 
 std::vector<std::filesystem::path> list_files(const std::filesystem::path& dir, std::string_view ext) {
-  if (!std::filesystem::is_directory(dir)) throw Error(fmt::format("{} is not a directory", dir));
+  if (!is_directory_or_throw(dir)) throw Error(fmt::format("{} is not a directory", dir));
   std::vector<std::filesystem::path> files;
-  for (const auto& entry : std::filesystem::directory_iterator(dir))
-    if (entry.is_regular_file() && entry.path().extension() == ext) files.push_back(entry.path());
+  std::error_code ec;
+  for (std::filesystem::directory_iterator it(dir, ec), end; !ec && it != end; it.increment(ec)) {
+    if (it->path().extension() != ext) continue;
+    std::error_code type_error;
+    const auto status = it->status(type_error);  // follows symlinks
+    if (type_error && type_error != std::errc::no_such_file_or_directory)
+      throw Error(fmt::format("cannot read {}: {}", it->path(), type_error.message()));
+    if (status.type() == std::filesystem::file_type::regular) {
+      files.push_back(it->path());
+    } else {
+      struct stat st {};
+      const bool dangling = ::stat(it->path().c_str(), &st) != 0;
+      throw Error(fmt::format("{} is {}, not a regular {} file", it->path(),
+                              dangling ? std::string_view("a dangling symbolic link") : describe_file_type(st.st_mode),
+                              ext));
+    }
+  }
+  if (ec) throw Error(fmt::format("cannot list the directory {}: {}", dir, ec.message()));
   // Digit-only stems first, by value (leading zeros stripped, then shorter is smaller); then by name.
   const auto key = [](const std::filesystem::path& p) {
     const std::string stem = p.stem().string();
@@ -128,7 +169,26 @@ std::vector<std::filesystem::path> list_files(const std::filesystem::path& dir, 
 }
 
 void require_exists(const std::filesystem::path& path, std::string_view what) {
-  if (!std::filesystem::exists(path)) throw Error(fmt::format("{} {} does not exist", what, path));
+  std::error_code ec;
+  const bool exists = std::filesystem::exists(path, ec);
+  if (ec) throw Error(fmt::format("cannot access {} {}: {}", what, path, ec.message()));
+  if (!exists) throw Error(fmt::format("{} {} does not exist", what, path));
+}
+
+bool exists_or_throw(const std::filesystem::path& path) {
+  std::error_code ec;
+  const auto status = std::filesystem::symlink_status(path, ec);
+  if (ec && ec != std::errc::no_such_file_or_directory && ec != std::errc::not_a_directory)
+    throw Error(fmt::format("cannot access {}: {}", path, ec.message()));
+  return std::filesystem::exists(status);
+}
+
+bool is_directory_or_throw(const std::filesystem::path& path) {
+  std::error_code ec;
+  const bool directory = std::filesystem::is_directory(path, ec);
+  if (ec && ec != std::errc::no_such_file_or_directory && ec != std::errc::not_a_directory)
+    throw Error(fmt::format("cannot access {}: {}", path, ec.message()));
+  return directory;
 }
 
 void apply_camera_options(Sequence& sequence, const ReadOptions& options) {
@@ -150,12 +210,14 @@ std::vector<ScanRecord> scan_records(const std::vector<std::filesystem::path>& s
   std::size_t without_labels = 0;
   for (std::size_t i = 0; i < scan_files.size(); ++i) {
     ScanRecord scan{stamps[i], scan_files[i], {}};
-    if (const std::filesystem::path labels = label_dir / (scan_files[i].stem().string() + ".label"); std::filesystem::exists(labels))
+    std::error_code ec;  // an inaccessible label file is reported when the scan is read
+    if (const std::filesystem::path labels = label_dir / (scan_files[i].stem().string() + ".label");
+        std::filesystem::exists(labels, ec) || ec)
       scan.labels = labels;
     without_labels += scan.labels.empty();
     scans.push_back(std::move(scan));
   }
-  if (std::filesystem::is_directory(label_dir) && without_labels > 0)
+  if (is_directory_or_throw(label_dir) && without_labels > 0)
     notes.push_back(
         fmt::format("{} of {} scans have no label file in {}", without_labels, scan_files.size(), label_dir));
   return scans;

@@ -4,13 +4,14 @@
 #include <tbb/parallel_for.h>
 
 #include <bit>
-#include <fstream>
 #include <mutex>
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
 
 #include "slamvdb/core/error.hpp"
 #include "slamvdb/core/ontology.hpp"
+#include "slamvdb/io/atomic_file.hpp"
+#include "slamvdb/io/sequence_reader.hpp"
 #include "slamvdb/synth/camera_sim.hpp"
 
 namespace slamvdb::synth {
@@ -24,41 +25,57 @@ static_assert(std::endian::native == std::endian::little, "the .bin/.label files
 constexpr std::array<const char*, 5> kTopFiles = {"poses.txt", "times.txt", "camera_info.txt", "transforms.yaml",
                                                   "synth.json"};
 
+// The incomplete-sequence marker goes in first (durably) and comes out last: a synth run that fails
+// or is killed anywhere in between leaves a sequence that read_sequence refuses.
 void prepare_output(const fs::path& out, bool overwrite) {
   std::error_code ec;
   if (fs::exists(out, ec) && !fs::is_directory(out, ec))
     throw Error(fmt::format("output {} exists and is not a directory", out.string()));
-  if (fs::exists(out, ec) && !fs::is_empty(out, ec)) {
-    if (!overwrite)
-      throw Error(
-          fmt::format("output directory {} is not empty; choose an empty one or pass --force to replace "
-                      "the sequence in it",
-                      out.string()));
-    for (const char* dir : {kLidarDir, kLidarLabelDir, kImageDir, kImageLabelDir}) fs::remove_all(out / dir);
-    for (const char* file : kTopFiles) fs::remove(out / file);
+  if (fs::exists(out, ec) && !fs::is_empty(out, ec) && !overwrite) {
+    if (fs::exists(out / kIncompleteMarker, ec))
+      throw Error(fmt::format("output directory {} holds an incomplete sequence (an earlier synth failed or was "
+                              "killed); pass --force to replace it",
+                              out.string()));
+    throw Error(
+        fmt::format("output directory {} is not empty; choose an empty one or pass --force to replace "
+                    "the sequence in it",
+                    out.string()));
   }
+  fs::create_directories(out, ec);
+  if (ec) throw Error(fmt::format("cannot create {}: {}", out.string(), ec.message()));
+  write_file_atomically(out / kIncompleteMarker,
+                        "slamvdb synth is writing this sequence; if this file remains, it failed or was killed\n");
+  for (const char* dir : {kLidarDir, kLidarLabelDir, kImageDir, kImageLabelDir}) {
+    fs::remove_all(out / dir, ec);
+    if (ec) throw Error(fmt::format("cannot remove the earlier {}: {}", (out / dir).string(), ec.message()));
+  }
+  for (const char* file : kTopFiles) fs::remove(out / file, ec);
+  remove_stale_temp_files(out);
   for (const char* dir : {kLidarDir, kLidarLabelDir, kImageDir, kImageLabelDir}) {
     fs::create_directories(out / dir, ec);
     if (ec) throw Error(fmt::format("cannot create {}: {}", (out / dir).string(), ec.message()));
   }
 }
 
+// Every file is written under a temporary name and renamed (io/atomic_file.hpp), unsynced: the
+// file system is synced once at the end, before the marker is removed.
+constexpr AtomicWriteOptions kUnsynced{.sync = false};
+
 void write_bytes(const fs::path& path, const void* data, std::size_t size) {
-  std::ofstream f(path, std::ios::binary);
-  f.write(static_cast<const char*>(data), static_cast<std::streamsize>(size));
-  if (!f) throw Error(fmt::format("cannot write {}", path.string()));
+  write_file_atomically(path, std::string_view(static_cast<const char*>(data), size), kUnsynced);
 }
 
 void write_text(const fs::path& path, const std::string& text) { write_bytes(path, text.data(), text.size()); }
 
 void write_image(const fs::path& path, const cv::Mat& image, const std::vector<int>& params) {
-  bool ok = false;
+  std::vector<uchar> encoded;
   try {
-    ok = cv::imwrite(path.string(), image, params);
+    if (!cv::imencode(path.extension().string(), image, encoded, params))
+      throw Error(fmt::format("cannot encode {}", path.string()));
   } catch (const cv::Exception& e) {
-    throw Error(fmt::format("cannot write {}: {}", path.string(), e.what()));
+    throw Error(fmt::format("cannot encode {}: {}", path.string(), e.what()));
   }
-  if (!ok) throw Error(fmt::format("cannot write {}", path.string()));
+  write_bytes(path, encoded.data(), encoded.size());
 }
 
 std::string pose_line(const Pose& T) {
@@ -212,6 +229,11 @@ SynthSummary write_synthetic_sequence(const SynthConfig& config, const fs::path&
         "all objects are static (vehicles and people do not move)",
         "RGB colours are a natural-looking palette, not the RELLIS-3D label colours"}}};
   write_text(out / "synth.json", meta.dump(2) + "\n");
+  sync_file_system(out);  // everything durable before the sequence is declared complete
+  std::error_code ec;
+  if (!fs::remove(out / kIncompleteMarker, ec) || ec)
+    throw Error(fmt::format("cannot remove {}: {}", (out / kIncompleteMarker).string(), ec.message()));
+  sync_directory(out);
 
   for (const char* dir : {kLidarDir, kLidarLabelDir, kImageDir, kImageLabelDir})
     for (const auto& entry : fs::directory_iterator(out / dir)) summary.bytes += entry.file_size();

@@ -42,7 +42,11 @@ using SynthProgress = std::function<void(std::size_t done, std::size_t total)>;
 
 // Builds the world and writes every scan and image (in parallel). `out` must be missing or empty,
 // unless `overwrite`, which first removes the files and folders of an earlier sequence there.
-// Throws Error on bad settings or any write failure (naming the file).
+// Throws Error on bad settings or any write failure (naming the file). The sequence is marked
+// incomplete (kIncompleteMarker, io/sequence_reader.hpp) from the start until every file is
+// written and synced, and each file is written under a temporary name and renamed: a run that
+// fails (full disk, ...) or is killed leaves a sequence that read_sequence refuses, never one
+// that looks complete.
 SynthSummary write_synthetic_sequence(const SynthConfig& config, const std::filesystem::path& out,
                                       bool overwrite = false, const SynthProgress& progress = {});
 

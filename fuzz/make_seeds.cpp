@@ -1,0 +1,111 @@
+// Writes the seed corpora of the fuzz harnesses: small valid inputs of every format, made by the
+// project's own writers where it has them (so the seeds follow the formats as they change).
+// Usage: fuzz_make_seeds OUT_DIR   ->  OUT_DIR/<harness name>/<seed files>
+#include <fmt/format.h>
+
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+#include <string>
+#include <vector>
+
+#include "slamvdb/io/npy.hpp"
+
+namespace fs = std::filesystem;
+
+namespace {
+
+fs::path out_dir;
+
+void seed(const std::string& harness, const std::string& name, const std::string& bytes) {
+  fs::create_directories(out_dir / harness);
+  std::ofstream(out_dir / harness / name, std::ios::binary) << bytes;
+}
+
+std::string file_bytes(const fs::path& p) {
+  std::ifstream in(p, std::ios::binary);
+  return {std::istreambuf_iterator<char>(in), {}};
+}
+
+template <typename T>
+std::string raw(const std::vector<T>& v) {
+  return std::string(reinterpret_cast<const char*>(v.data()), v.size() * sizeof(T));
+}
+
+std::string encode(const char* ext, const cv::Mat& image) {
+  std::vector<uchar> bytes;
+  cv::imencode(ext, image, bytes);
+  return raw(bytes);
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  if (argc != 2) {
+    std::fprintf(stderr, "usage: %s OUT_DIR\n", argv[0]);
+    return 2;
+  }
+  out_dir = argv[1];
+  fs::create_directories(out_dir);
+
+  // scan: 2 bytes (big-endian) = size of the .bin part, then .bin, then .label.
+  const std::vector<float> points = {1, 2, 3, 0.1f, 0, 0, 0, 0, -4, 5, 0.5f, 0.01f, 0.1f, 0.1f, 0.1f, 0};
+  const std::vector<uint32_t> labels = {3, 0, 0x10004, 7};
+  const std::string bin = raw(points);
+  seed("scan", "with_labels", std::string{0, static_cast<char>(bin.size())} + bin + raw(labels));
+  seed("scan", "without_labels", std::string{'\xff', '\xff'} + bin);
+
+  // npy: float32 and float16 C x H x W, through the project's writer (float16 by hand).
+  const std::vector<float> chw = {1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12};
+  slamvdb::write_npy_array(out_dir / "f32.npy.tmp", chw.data(), {3, 2, 2});
+  seed("npy", "f32_3x2x2", file_bytes(out_dir / "f32.npy.tmp"));
+  slamvdb::write_npy_array(out_dir / "f32.npy.tmp", chw.data(), {1, 2, 3, 2});
+  seed("npy", "f32_1x2x3x2", file_bytes(out_dir / "f32.npy.tmp"));
+  fs::remove(out_dir / "f32.npy.tmp");
+  std::string f16_header = "{'descr': '<f2', 'fortran_order': False, 'shape': (2, 1, 2), }";
+  f16_header.append((64 - (10 + f16_header.size() + 1) % 64) % 64, ' ');
+  f16_header.push_back('\n');
+  seed("npy", "f16_2x1x2",
+       std::string("\x93NUMPY\x01\x00", 8) + static_cast<char>(f16_header.size()) + '\0' + f16_header +
+           std::string("\x00\x3c\x00\x40\x00\x42\x00\xbc", 8));
+
+  seed("poses_kitti", "two", "1 0 0 0 0 1 0 0 0 0 1 0\n0 -1 0 4.5 1 0 0 -5e-1 0 0 1 6\n");
+  seed("poses_kitti", "exp", "1.000000000e+00 0.0 0.0 1.2e3 0 1 0 0 0 0 1 0\r\n\n");
+  seed("times", "stamps", "0.0\n0.1\n0.2\n1700000000.250000\n");
+  seed("camera_info", "pinhole", "2813.643275 2808.326079 969.285772 624.049972\n");
+  seed("camera_info", "plumb_bob", "400 400 320 200\n-0.134313 -0.025905 0.002181 0.00084 0.0\n");
+  seed("transforms", "block",
+       "os1_cloud_node-pylon_camera_node:\n  q:\n    w: -0.50507811\n    x: 0.51206185\n    y: 0.49024953\n"
+       "    z: -0.49228464\n  t:\n    x: -0.13165462\n    y: 0.03870398\n    z: -0.17253834\n");
+  seed("transforms", "flow",
+       "os1_cloud_node-pylon_camera_node: {q: {w: 1, x: 0, y: 0, z: 0}, t: {x: 0.1, y: 0.2, z: 0.3}}\n");
+  seed("kitti_calib", "calib",
+       "P0: 7.188560e+02 0 6.071928e+02 0 0 7.188560e+02 1.852157e+02 0 0 0 1 0\n"
+       "P2: 7.188560e+02 0 6.071928e+02 4.538225e+01 0 7.188560e+02 1.852157e+02 -1.130887e-01 0 0 1 3.779761e-03\n"
+       "Tr: 4.276802e-04 -9.999672e-01 -8.084491e-03 -1.198459e-02 -7.210626e-03 8.081198e-03 -9.999413e-01 "
+       "-5.403984e-02 9.999738e-01 4.859485e-04 -7.206933e-03 -2.921968e-01\n");
+
+  // Images: tiny JPEG (colour) and PNGs (grey labels, colour), encoded by OpenCV.
+  cv::Mat colour(12, 20, CV_8UC3, cv::Scalar(10, 200, 30)), grey(12, 20, CV_8UC1, cv::Scalar(3));
+  cv::circle(colour, {10, 6}, 4, cv::Scalar(250, 0, 0), -1);
+  seed("image", "colour.jpg", encode(".jpg", colour));
+  seed("image", "colour.png", encode(".png", colour));
+  seed("image", "labels.png", encode(".png", grey));
+
+  seed("model_manifest", "dense",
+       R"({"manifest_version": 1, "kind": "dense_image", "model_id": "lseg-test",
+  "input": {"height": 32, "width": 48, "resize": "resize_short_center_crop", "interpolation": "bilinear",
+            "channel_order": "RGB", "value_scale": 0.00392156862745098, "mean": [0.5, 0.5, 0.5], "std": [0.5, 0.5, 0.5]},
+  "output": {"dim": 8, "height": 16, "width": 24, "layout": "CHW", "l2_normalized": false, "normalize_output": true},
+  "runtime": {"threads": 2, "batch_size": 4}})");
+  seed("model_manifest", "text",
+       R"({"manifest_version": 1, "kind": "text", "model_id": "clip-text-test",
+  "text": {"context_length": 77, "vocab": "bpe_simple_vocab_16e6.txt.gz"},
+  "output": {"dim": 8, "l2_normalized": true, "normalize_output": false}})");
+  seed("file_names", "rellis", "frame000104-1581624663_149");
+  seed("file_names", "escape", "model\x1b[2J\xc2\x9b\xe2\x80\xae\xff");
+  std::printf("seeds written to %s\n", out_dir.c_str());
+  return 0;
+}
