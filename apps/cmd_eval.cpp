@@ -88,7 +88,7 @@ void run(Options opt) {
   std::optional<ProgressBar> bar;
   const Timer timer;
   const MapEvaluation r = evaluate_map(map, scans, queries, ontology, options, [&](std::size_t done, std::size_t total) {
-    if (!bar) bar.emplace("eval", total);
+    if (!bar) bar.emplace("eval", total, "scans");
     bar->update(done, fmt::format("{:.0f} scans/s", done / std::max(timer.seconds(), 1e-9)));
   });
   if (bar) bar->finish();
@@ -117,7 +117,7 @@ void run(Options opt) {
     const Timer itimer;
     const ImageBaselineResult b = evaluate_image_baseline(
         images, *source, queries, ontology, baseline_options, [&](std::size_t done, std::size_t total) {
-          if (!ibar) ibar.emplace("baseline", total);
+          if (!ibar) ibar.emplace("baseline", total, "images");
           ibar->update(done, fmt::format("{:.1f} images/s", done / std::max(itimer.seconds(), 1e-9)));
         });
     if (ibar) ibar->finish();

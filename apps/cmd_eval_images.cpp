@@ -47,7 +47,7 @@ void run(const Options& opt) {
   const auto t0 = std::chrono::steady_clock::now();
   const ImageBaselineResult r =
       evaluate_image_baseline(images, *features, queries, ontology, options, [&](std::size_t done, std::size_t total) {
-        if (!bar) bar.emplace("images", total);
+        if (!bar) bar.emplace("images", total, "images");
         const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
         bar->update(done, fmt::format("{:.1f} images/s", s > 0 ? done / s : 0.0));
       });

@@ -64,7 +64,7 @@ void run(const Options& opt) {
   std::size_t non_finite = 0, out_of_range = 0, recovered = 0;
   int consecutive = 0;
   double distance = 0.0, busy = 0.0;
-  ProgressBar bar("odometry", source.scans.size());
+  ProgressBar bar("odometry", source.scans.size(), "scans");
   for (std::size_t i = 0; i < source.scans.size(); ++i) {
     const ScanFile& file = source.scans[i];
     const ScanPoints scan = load_scan_points(file);

@@ -72,7 +72,7 @@ void run(const Options& opt) {
   std::optional<ProgressBar> bar;
   const synth::SynthSummary s =
       synth::write_synthetic_sequence(config, opt.out, opt.force, [&](std::size_t done, std::size_t total) {
-        if (!bar) bar.emplace("synth (simulated)", total);
+        if (!bar) bar.emplace("synth (simulated)", total, "frames");
         bar->update(done);
       });
   if (bar) bar->finish();

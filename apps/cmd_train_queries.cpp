@@ -64,7 +64,7 @@ void run(Options opt) {
   TrainingCallbacks callbacks;
   const auto t0 = std::chrono::steady_clock::now();
   callbacks.image_progress = [&](std::size_t done, std::size_t total) {
-    if (!image_bar) image_bar.emplace("features", total);
+    if (!image_bar) image_bar.emplace("features", total, "images");
     const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     image_bar->update(done, fmt::format("{:.1f} images/s", s > 0 ? done / s : 0.0));
     if (done == total) image_bar->finish(fmt::format("{:.1f} images/s", s > 0 ? done / s : 0.0));

@@ -1,23 +1,70 @@
 // slamvdb: open-vocabulary semantic voxel mapping. One binary, one subcommand per job.
+// Exit codes: 0 success, 1 runtime error (bad input file, full disk, ...), 2 usage error.
 #include <spdlog/spdlog.h>
+#include <unistd.h>
 
 #include <CLI/CLI.hpp>
+#include <cstdio>
 #include <exception>
 #include <new>
+#include <string>
 
 #include "command_registry.hpp"
+#include "progress.hpp"
 #include "slamvdb/core/error.hpp"
 #include "slamvdb/core/text_escape.hpp"
+#include "slamvdb_version.hpp"
+
+namespace {
+
+// The first argument that is not an option, if it names no command: CLI11 would only say "A
+// subcommand is required".
+std::string unknown_command(const CLI::App& app, int argc, char** argv) {
+  for (int i = 1; i < argc; ++i) {
+    const std::string arg = argv[i];
+    if (arg.empty() || arg[0] == '-') continue;
+    for (const CLI::App* sub : app.get_subcommands({})) {
+      if (sub->check_name(arg)) return "";
+    }
+    return arg;
+  }
+  return "";
+}
+
+}  // namespace
 
 int main(int argc, char** argv) {
+  // Interactive use: one line per message, no time stamps; logs (stderr not a terminal) keep them.
+  if (isatty(fileno(stderr))) spdlog::set_pattern("%^%l%$: %v");
+
   CLI::App app{"slamvdb: open-vocabulary semantic voxel maps from LiDAR and camera"};
   app.require_subcommand(1);
+  app.fallthrough();  // --quiet / --verbose are accepted after the command too
   app.set_help_all_flag("--help-all", "Show help for every subcommand");
+  app.set_version_flag("--version", std::string("slamvdb ") + SLAMVDB_VERSION + " (" + SLAMVDB_GIT_COMMIT + ")");
+  bool quiet = false, verbose = false;
+  app.add_flag("-q,--quiet", quiet, "Print only warnings and errors (no progress bars)");
+  app.add_flag("-v,--verbose", verbose, "Print debug messages too");
+  app.parse_complete_callback([&] {
+    if (quiet && verbose) throw CLI::ValidationError("--quiet and --verbose exclude each other");
+    if (quiet) {
+      spdlog::set_level(spdlog::level::warn);
+      slamvdb::cli::ProgressBar::set_enabled(false);
+    }
+    if (verbose) spdlog::set_level(spdlog::level::debug);
+  });
   for (const auto& add : slamvdb::cli::command_factories()) add(app);
   try {
+    if (const std::string name = unknown_command(app, argc, argv); !name.empty()) {
+      std::string commands;
+      for (const CLI::App* sub : app.get_subcommands({})) commands += (commands.empty() ? "" : ", ") + sub->get_name();
+      std::fprintf(stderr, "slamvdb: unknown command '%s'; commands: %s (slamvdb --help)\n",
+                   slamvdb::escape_control(name).c_str(), commands.c_str());
+      return 2;
+    }
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
-    // --help exits 0; every usage error (a bad, missing or unknown option or value) exits 2.
+    // --help and --version exit 0; every usage error (a bad, missing or unknown option or value) exits 2.
     return app.exit(e) == 0 ? 0 : 2;
   } catch (const slamvdb::Error& e) {
     // Messages quote file names and file contents: printed with control characters escaped.
