@@ -27,7 +27,11 @@ PACKAGES=(
   pybind11-dev python3-dev python3-pytest  # the Python module and its tests
   libceres-dev libnanoflann-dev liblzf-dev  # localization: pose graph, ScanContext k-d tree, PCD binary_compressed
   clang libclang-rt-14-dev           # sanitizer build (ASan + UBSan) and libFuzzer harnesses (scripts/fuzz.sh)
+  chromium                           # the HTML viewer's test (headless, driven by playwright-core)
 )
+# Node.js and npm (three.js, esbuild and playwright-core for the HTML viewer, from the npm
+# registry): Debian's, unless the machine already has them.
+command -v npm > /dev/null || PACKAGES+=(nodejs npm)
 
 if [ "${SLAMVDB_SKIP_APT:-0}" != "1" ]; then
   missing=()
@@ -39,6 +43,12 @@ if [ "${SLAMVDB_SKIP_APT:-0}" != "1" ]; then
     $SUDO apt-get update -qq
     DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}"
   fi
+fi
+
+# The viewer's npm packages, exactly as locked (viewer/package-lock.json).
+if [ ! -f viewer/node_modules/.package-lock.json ] || ! cmp -s viewer/package-lock.json viewer/node_modules/.slamvdb-lock; then
+  npm ci --prefix viewer --no-audit --no-fund --loglevel=error
+  cp viewer/package-lock.json viewer/node_modules/.slamvdb-lock
 fi
 
 cmake -S . -B build -G Ninja -DCMAKE_BUILD_TYPE=Release
