@@ -65,7 +65,7 @@ void add(CLI::App& root) {
       "and print the vector as one CSV line, as JSON, or save it as .npy");
   cmd->add_option("text", opt->text, "The text to embed, e.g. \"tall grass\"")->required();
   auto* model = cmd->add_option("--model", opt->model, "Text encoder model (.pt, or its .json manifest)");
-  cmd->add_option("--out", opt->out, "Write the vector as a float32 .npy of shape (dim,) instead of printing it");
+  cmd->add_option("-o,--output,--out", opt->out, "Write the vector as a float32 .npy of shape (dim,) instead of printing it");
   cmd->add_flag("--json", opt->json, "Print {model_id, text, dim, embedding} as JSON instead of a CSV line");
   cmd->add_option("--threads", opt->threads, "libtorch threads (default: the manifest's runtime.threads)")
       ->check(integer_range(-1, bounds::kMaxThreads));

@@ -117,7 +117,7 @@ void add(CLI::App& root) {
   cmd->add_option("estimate", opt->estimate, "Estimated poses")->required()->check(CLI::ExistingFile);
   cmd->add_option("truth", opt->truth, "Ground-truth poses")->required()->check(CLI::ExistingFile);
   cmd->add_option("--png", opt->png, "Write a plot seen from above")->check(kWritableParent);
-  cmd->add_option("--json", opt->json, "Write the metrics as JSON")->check(kWritableParent);
+  cmd->add_option("-o,--output,--json", opt->json, "Write the metrics as JSON")->check(kWritableParent);
   cmd->add_option("--loops", opt->loops, "JSON summary of `slamvdb odometry --json` whose loops the plot draws")
       ->check(CLI::ExistingFile);
   cmd->add_option("--max-dt", opt->max_dt, "Largest stamp difference when pairing TUM files (s)")

@@ -169,7 +169,7 @@ void add(CLI::App& root) {
   auto* text = cmd->add_option("--text-model", opt->text_model, "Text encoder for the class names (.pt with .json)");
   cmd->add_option("--classes", opt->classes, "Comma-separated class names, e.g. \"grass,tree,sky,dirt road\"")
       ->required();
-  cmd->add_option("--out-dir", opt->out_dir, "Output directory (created if missing)")->required();
+  cmd->add_option("-o,--output,--out-dir", opt->out_dir, "Output directory (created if missing)")->required();
   cmd->add_option("--threads", opt->threads, "libtorch threads (default: the manifests' runtime.threads)")
       ->check(integer_range(-1, bounds::kMaxThreads));
   cmd->add_option("--max-image-pixels", opt->max_image_pixels,
