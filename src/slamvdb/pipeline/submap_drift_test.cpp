@@ -6,6 +6,7 @@
 #include <filesystem>
 #include <iostream>
 
+#include "slamvdb/eval/map_comparison.hpp"
 #include "slamvdb/io/sequence_reader.hpp"
 #include "slamvdb/pipeline/mapping_pipeline.hpp"
 #include "slamvdb/synth/sequence_writer.hpp"
@@ -25,34 +26,6 @@ Trajectory drifted(const Trajectory& truth) {
     poses.push_back(poses.back() * step);
   }
   return Trajectory(truth.stamps(), poses);
-}
-
-std::vector<IndexCellKey> occupied_cells(const SemanticMap& m) {
-  std::vector<IndexCellKey> cells;
-  for (const WorldOccupancyCell& c : m.world_occupancy())
-    if (c.log_odds >= m.params().occupancy.occupied_threshold) cells.push_back(c.cell);
-  return cells;  // sorted by key
-}
-
-// Occupied world cells of both maps: |A and B| / |A or B|, where with tolerance t a cell of one map
-// counts as shared when the other has an occupied cell within t cells of it (per axis).
-double occupied_iou(const SemanticMap& a, const SemanticMap& b, int tolerance = 0) {
-  const auto ca = occupied_cells(a), cb = occupied_cells(b);
-  auto matched = [&](const std::vector<IndexCellKey>& from, const std::vector<IndexCellKey>& in) {
-    std::size_t n = 0;
-    for (const IndexCellKey& c : from) {
-      bool hit = false;
-      for (int dx = -tolerance; dx <= tolerance && !hit; ++dx)
-        for (int dy = -tolerance; dy <= tolerance && !hit; ++dy)
-          for (int dz = -tolerance; dz <= tolerance && !hit; ++dz)
-            hit = std::binary_search(in.begin(), in.end(), IndexCellKey(c.x() + dx, c.y() + dy, c.z() + dz));
-      n += hit;
-    }
-    return n;
-  };
-  // Symmetric: the shared part is the mean of what each map finds in the other.
-  const double shared = 0.5 * static_cast<double>(matched(ca, cb) + matched(cb, ca));
-  return shared / (static_cast<double>(ca.size() + cb.size()) - shared);
 }
 
 TEST(SubmapDrift, CorrectedAnchorsRestoreTheGroundTruthMap) {

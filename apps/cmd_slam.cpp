@@ -1,0 +1,177 @@
+// `slamvdb slam`: a semantic map without ground-truth poses. The project's LiDAR odometry and
+// loop-closing mapper track the scans; the map is built on the odometry poses, then every submap
+// is moved to the loop-corrected trajectory through the map's correction API (no sensor data is
+// fused again) and submaps that a loop shows to be the same place are merged.
+#include <fmt/format.h>
+#include <spdlog/spdlog.h>
+
+#include <optional>
+
+#include "command_registry.hpp"
+#include "feature_options.hpp"
+#include "option_checks.hpp"
+#include "progress.hpp"
+#include "slamvdb/core/error.hpp"
+#include "slamvdb/core/text_escape.hpp"
+#include "slamvdb/io/sequence_reader.hpp"
+#include "slamvdb/io/trajectory_io.hpp"
+#include "slamvdb/localization/trajectory_metrics.hpp"
+#include "slamvdb/pipeline/lidar_tracking.hpp"
+#include "slamvdb/pipeline/loop_corrections.hpp"
+#include "slamvdb/pipeline/mapping_pipeline.hpp"
+#include "slamvdb/store/map_store.hpp"
+
+namespace slamvdb::cli {
+namespace {
+
+struct Options {
+  std::string dataset, output, poses_out;
+  PoseFormat format = PoseFormat::kKitti;
+  FeatureOptions features;
+  TrackingOptions tracking;
+  PipelineOptions pipeline;
+  double min_merge_overlap = MergeOptions{}.min_overlap;
+};
+
+// Pose errors of the scans that have a ground-truth pose, after SE(3) alignment.
+std::optional<localization::AteResult> ate_against(const Trajectory& truth, const std::vector<double>& stamps,
+                                                   const std::vector<Pose>& poses) {
+  std::vector<Pose> estimate, reference;
+  for (std::size_t i = 0; i < stamps.size(); ++i)
+    if (const auto T = truth.at(stamps[i])) estimate.push_back(poses[i]), reference.push_back(*T);
+  if (estimate.size() < 3) return std::nullopt;
+  return localization::absolute_trajectory_error(estimate, reference);
+}
+
+void run(Options opt) {
+  const Sequence seq = read_sequence(opt.dataset);
+  fmt::print("sequence {} ({} layout): {} scans, {} images\n", seq.root.string(), seq.layout, seq.scans.size(),
+             seq.images.size());
+  for (const auto& note : seq.notes) fmt::print("  note: {}\n", escape_control(note));
+  if (seq.scans.size() < 3) throw Error(fmt::format("{}: {} scans; slam needs at least 3", opt.dataset, seq.scans.size()));
+  const auto source = make_feature_source(opt.features, seq);
+
+  // 1. Tracking: odometry + loop closure.
+  std::vector<ScanFile> scans;
+  for (const ScanRecord& s : seq.scans) scans.push_back({s.stamp, s.points});
+  std::optional<ProgressBar> track_bar;
+  const TrackingResult tracked = track_scans(scans, opt.tracking, [&](std::size_t done, std::size_t total,
+                                                                      const TrackingResult& r) {
+    if (!track_bar) track_bar.emplace("tracking", total, "scans");
+    track_bar->update(done, fmt::format("{:.0f} m{}", r.distance,
+                                        r.loop_closer ? fmt::format(", {} loops", r.loop_closer->loops().size()) : ""));
+  });
+  if (track_bar) track_bar->finish();
+  for (const auto& line : tracked.problems) spdlog::warn("{}", escape_control(line));
+
+  // The odometry frame is the first scan's sensor frame; with ground truth it is placed at the
+  // first ground-truth pose (the start is known, as on a robot), so the maps can be compared.
+  Pose T_world_odom = Pose::Identity();
+  if (const auto first = seq.poses.empty() ? std::nullopt : seq.poses.at(tracked.stamps.front())) T_world_odom = *first;
+  std::vector<Pose> odometry_poses, corrected_poses;
+  for (std::size_t i = 0; i < tracked.stamps.size(); ++i) {
+    odometry_poses.push_back(T_world_odom * tracked.T_odom_sensor[i]);
+    corrected_poses.push_back(T_world_odom * tracked.corrected(i));
+  }
+
+  // 2. The map on the odometry poses (what a robot has while it drives).
+  Sequence on_odometry = seq;
+  on_odometry.poses = Trajectory(tracked.stamps, odometry_poses);
+  std::optional<ProgressBar> map_bar;
+  PipelineReport report;
+  SemanticMap map = build_map(on_odometry, source.get(), opt.pipeline, report, [&](std::size_t done, std::size_t total) {
+    if (!map_bar) map_bar.emplace("map", total, "scans");
+    map_bar->update(done);
+  });
+  if (map_bar) map_bar->finish();
+  fmt::print("{}\n", escape_control_keep_lines(report.summary()));
+
+  // 3. Loop corrections move (and merge) the finished submaps.
+  std::vector<std::pair<double, double>> loops;
+  if (tracked.loop_closer)
+    for (const auto& l : tracked.loop_closer->loops()) loops.emplace_back(l.candidate_stamp, l.query_stamp);
+  const Pose T_odom_world = T_world_odom.inverse();
+  const LoopCorrectionReport corrections = apply_loop_corrections(
+      map, [&](double t) { return T_world_odom * tracked.correction_at(t) * T_odom_world; }, loops,
+      MergeOptions{opt.min_merge_overlap});
+  MapInfo info = map.info();
+  info.source = "slam (own odometry" + std::string(tracked.loop_closer ? " + loop closure" : "") + "): " +
+                seq.root.string();
+  map.set_info(info);
+  save_map(opt.output, map);
+  if (!opt.poses_out.empty()) write_trajectory(opt.poses_out, tracked.stamps, corrected_poses, opt.format);
+
+  fmt::print("slam of {}: {} scans, {:.1f} m, tracking {:.1f} scans/s\n", opt.dataset, tracked.stamps.size(),
+             tracked.distance, tracked.stamps.size() / std::max(tracked.busy_seconds, 1e-9));
+  fmt::print("  registered   {} ({} after a wide retry)\n", tracked.registered(), tracked.recovered);
+  for (const auto& [reason, n] : tracked.failures) fmt::print("  not registered ({}): {}\n", reason, n);
+  if (tracked.loop_closer) {
+    fmt::print("  loops        {} accepted, {} rejected\n", tracked.loop_closer->loops().size(),
+               tracked.loop_closer->rejected_total());
+  }
+  fmt::print("  submaps      {} moved (largest shift {:.2f} m), {} merged, {} merges refused\n",
+             corrections.submaps_moved, corrections.max_shift, corrections.merges, corrections.merges_refused);
+  for (const auto& note : corrections.notes) fmt::print("    {}\n", note);
+  if (!seq.poses.empty()) {
+    const auto before = ate_against(seq.poses, tracked.stamps, odometry_poses);
+    const auto after = ate_against(seq.poses, tracked.stamps, corrected_poses);
+    if (before && after)
+      fmt::print("  against the dataset's poses: ATE rmse {:.3f} m with odometry only, {:.3f} m after loop closure\n",
+                 before->rmse, after->rmse);
+  }
+  fmt::print("map saved to {}: {} submaps, {} semantic cells{}\n", opt.output, map.num_submaps(),
+             map.num_index_cells(), opt.poses_out.empty() ? "" : "; poses written to " + opt.poses_out);
+}
+
+void add(CLI::App& root) {
+  auto opt = std::make_shared<Options>();
+  auto* cmd = root.add_subcommand(
+      "slam",
+      "Map a dataset (RELLIS-3D or KITTI layout) without its poses: LiDAR odometry and loop closure track the scans, "
+      "the map is built on the odometry poses and its submaps are then moved to the loop-corrected trajectory (and "
+      "merged where a loop shows two are the same place).");
+  cmd->add_option("dataset", opt->dataset, "Sequence directory")->required()->check(CLI::ExistingDirectory);
+  cmd->add_option("-o,--output", opt->output, "Map file to write (.svdb)")->required();
+  cmd->add_option("--poses-out", opt->poses_out, "Also write the corrected poses (T_world_lidar per scan)");
+  cmd->add_option("--format", opt->format, "Format of --poses-out: kitti or tum")
+      ->transform(CLI::CheckedTransformer(std::map<std::string, PoseFormat>{{"kitti", PoseFormat::kKitti},
+                                                                             {"tum", PoseFormat::kTum}}))
+      ->default_str("kitti");
+  add_feature_options(cmd, opt->features, false);
+  cmd->add_flag("--no-loop-closure", [opt](std::int64_t) { opt->tracking.loop_closure = false; },
+                "Odometry only (no submap moves or merges)");
+  cmd->add_option("--keyframe-distance", opt->tracking.loops.keyframe_distance, "Metres of path between keyframes")
+      ->capture_default_str()
+      ->check(finite_range(0.1, 100));
+  cmd->add_option("--submap-length", opt->pipeline.map.submap_length, "Metres of path per submap (0: one submap)")
+      ->capture_default_str()
+      ->check(finite_range(0, 1e6));
+  cmd->add_option("--voxel-size", opt->pipeline.map.occupancy.voxel_size, "Map voxel edge (m)")
+      ->capture_default_str()
+      ->check(finite_range(bounds::kMinVoxelSize, bounds::kMaxVoxelSize));
+  cmd->add_option("--min-merge-overlap", opt->min_merge_overlap,
+                  "Merge two submaps joined by a loop when this share of occupied voxels agrees")
+      ->capture_default_str()
+      ->check(finite_range(0, 1));
+  cmd->parse_complete_callback([opt] {
+    check_feature_options(opt->features);
+    check_output_file(opt->output, "-o");
+    if (!opt->poses_out.empty()) check_output_file(opt->poses_out, "--poses-out");
+    try {
+      opt->tracking.odometry.validate();
+      opt->tracking.loops.validate();
+      opt->pipeline.map.validate();
+    } catch (const Error& e) {
+      usage_error(e.what());
+    }
+  });
+  cmd->callback([opt] {
+    opt->pipeline.map.semantic.dim = opt->features.dim;
+    run(*opt);
+  });
+}
+
+const RegisterCommand reg{add};
+
+}  // namespace
+}  // namespace slamvdb::cli

@@ -1,0 +1,49 @@
+#pragma once
+// The project's own poses: LiDAR odometry over a list of scan files, optionally with the
+// loop-closing mapper, as `slamvdb odometry` and `slamvdb slam` run it. Scan-level failures are
+// counted by reason (the constant-velocity prediction stands in), too many in a row is an Error.
+#include <cstddef>
+#include <functional>
+#include <map>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "slamvdb/core/types.hpp"
+#include "slamvdb/io/scan_source.hpp"
+#include "slamvdb/localization/loop_closure.hpp"
+#include "slamvdb/localization/odometry.hpp"
+
+namespace slamvdb {
+
+struct TrackingOptions {
+  localization::OdometryConfig odometry;
+  bool loop_closure = true;
+  localization::LoopClosureConfig loops;
+  int max_consecutive_failures = 10;
+};
+
+struct TrackingResult {
+  std::vector<double> stamps;
+  std::vector<Pose> T_odom_sensor;  // odometry, frame of the first scan
+  std::map<std::string, std::size_t> failures;  // scans not registered, by reason
+  std::vector<std::string> problems;            // one line per such scan
+  std::size_t non_finite_points = 0, out_of_range_points = 0, recovered = 0;
+  double distance = 0.0;        // odometry path length (m)
+  double busy_seconds = 0.0;    // registration and loop closure, not file reading
+  std::unique_ptr<localization::LoopClosingMapper> loop_closer;  // when options.loop_closure
+
+  std::size_t registered() const;
+  // The corrected pose of scan i (T_world_sensor with world = odom corrected by the loops), or the
+  // odometry pose without loop closure.
+  Pose corrected(std::size_t i) const;
+  // T_world_odom at a stamp (identity without loop closure).
+  Pose correction_at(double stamp) const;
+};
+
+// progress(done, total, result so far) after every scan.
+using TrackingProgress = std::function<void(std::size_t, std::size_t, const TrackingResult&)>;
+TrackingResult track_scans(const std::vector<ScanFile>& scans, const TrackingOptions& options,
+                           const TrackingProgress& progress = {});
+
+}  // namespace slamvdb
