@@ -4,6 +4,7 @@
 #include <unistd.h>
 
 #include <CLI/CLI.hpp>
+#include <algorithm>
 #include <cstdio>
 #include <exception>
 #include <new>
@@ -14,20 +15,14 @@
 #include "slamvdb/core/error.hpp"
 #include "slamvdb/core/text_escape.hpp"
 #include "slamvdb_version.hpp"
+#include "yaml_config.hpp"
 
 namespace {
 
-// The first argument that is not an option, if it names no command: CLI11 would only say "A
-// subcommand is required".
-std::string unknown_command(const CLI::App& app, int argc, char** argv) {
-  for (int i = 1; i < argc; ++i) {
-    const std::string arg = argv[i];
-    if (arg.empty() || arg[0] == '-') continue;
-    for (const CLI::App* sub : app.get_subcommands({})) {
-      if (sub->check_name(arg)) return "";
-    }
-    return arg;
-  }
+// The first argument that is not an option: the command's name, or empty.
+std::string command_name(int argc, char** argv) {
+  for (int i = 1; i < argc; ++i)
+    if (argv[i][0] != '-' && argv[i][0] != 0) return argv[i];
   return "";
 }
 
@@ -54,15 +49,25 @@ int main(int argc, char** argv) {
     if (verbose) spdlog::set_level(spdlog::level::debug);
   });
   for (const auto& add : slamvdb::cli::command_factories()) add(app);
+  const std::string command = command_name(argc, argv);
+  slamvdb::cli::add_yaml_config(app, command);
   try {
-    if (const std::string name = unknown_command(app, argc, argv); !name.empty()) {
+    const auto subs = app.get_subcommands({});
+    if (!command.empty() && std::none_of(subs.begin(), subs.end(), [&](const CLI::App* s) { return s->check_name(command); })) {
       std::string commands;
       for (const CLI::App* sub : app.get_subcommands({})) commands += (commands.empty() ? "" : ", ") + sub->get_name();
       std::fprintf(stderr, "slamvdb: unknown command '%s'; commands: %s (slamvdb --help)\n",
-                   slamvdb::escape_control(name).c_str(), commands.c_str());
+                   slamvdb::escape_control(command).c_str(), commands.c_str());
       return 2;
     }
     app.parse(argc, argv);
+  } catch (const CLI::ConfigError& e) {
+    // CLI11 names its own formats ("INI was not able to parse map.x"): say what was wrong in ours.
+    std::string message = e.what();
+    if (const auto at = message.find("INI was not able to parse "); at != std::string::npos)
+      message = "--config: '" + message.substr(at + 26) + "' is not an option of this command";
+    std::fprintf(stderr, "%s\n", slamvdb::escape_control(message).c_str());
+    return 2;
   } catch (const CLI::ParseError& e) {
     // --help and --version exit 0; every usage error (a bad, missing or unknown option or value) exits 2.
     return app.exit(e) == 0 ? 0 : 2;

@@ -2,6 +2,7 @@
 // (0 / 1 runtime / 2 usage), --quiet.
 #include <gtest/gtest.h>
 
+#include <fstream>
 #include <string>
 
 #include "slamvdb/testing/run_command.hpp"
@@ -44,6 +45,34 @@ TEST(CliConventions, QuietPrintsNoProgressOrInfo) {
   EXPECT_EQ(quiet.output.find("synth (simulated)"), std::string::npos) << quiet.output;
   const auto normal = run_command(kCli + " synth " + out + " --force --length 2 --image-size 64x40 2>&1 >/dev/null");
   EXPECT_NE(normal.output.find("frames/s"), std::string::npos) << normal.output;  // the rate, in its unit
+}
+
+}  // namespace
+
+namespace {
+
+TEST(CliConventions, ConfigFileSetsOptionsAndTheCommandLineWins) {
+  slamvdb::testing::TempDir tmp;
+  const auto write = [&](const std::string& name, const std::string& text) {
+    const auto path = tmp.path / name;
+    std::ofstream(path) << text;
+    return shell_quote(path.string());
+  };
+  const std::string seq = shell_quote((tmp.path / "seq").string());
+  const std::string good = write("synth.yaml", "length: 2\nimage_size: 64x40\nseed: 3\n");
+  const auto r = run_command(kCli + " synth " + seq + " --config " + good + " 2>&1");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("64x40"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("path length 2."), std::string::npos) << r.output;
+  const auto wins = run_command(kCli + " synth " + seq + " --force --length 3 --config " + good + " 2>&1");
+  EXPECT_NE(wins.output.find("path length 3."), std::string::npos) << wins.output;
+  const auto typo = run_command(kCli + " synth " + seq + " --config " + write("typo.yaml", "lenght: 2\n") + " 2>&1");
+  EXPECT_EQ(typo.exit_code, 2);
+  EXPECT_NE(typo.output.find("'synth.lenght' is not an option"), std::string::npos) << typo.output;
+  const auto bad = run_command(kCli + " synth " + seq + " --config " + write("bad.yaml", "length: nan\n") + " 2>&1");
+  EXPECT_EQ(bad.exit_code, 2) << bad.output;
+  const auto broken = run_command(kCli + " synth " + seq + " --config " + write("broken.yaml", "length: [2\n") + " 2>&1");
+  EXPECT_EQ(broken.exit_code, 2) << broken.output;
 }
 
 }  // namespace
