@@ -1,5 +1,10 @@
 #include "slamvdb/io/map_export.hpp"
 
+#include <sstream>
+
+#include "slamvdb/io/atomic_file.hpp"
+#include "slamvdb/io/map_pictures.hpp"
+
 #include <fmt/format.h>
 
 #include <Eigen/Eigenvalues>
@@ -131,15 +136,16 @@ std::vector<ColouredVoxel> colour_by_pca(const SemanticMap& map) {
 
 void write_ply(const fs::path& path, const std::vector<ColouredVoxel>& voxels, PlyEncoding encoding,
                const ExportProgress& progress) {
-  std::ofstream out(path, std::ios::binary | std::ios::trunc);
-  if (!out) throw Error(fmt::format("cannot write PLY file {}: {}", path.string(), std::strerror(errno)));
+  AtomicFile file(path);
+  std::ostringstream out;
   const bool ascii = encoding == PlyEncoding::kAscii;
   out << "ply\nformat " << (ascii ? "ascii" : "binary_little_endian") << " 1.0\n"
       << "comment slamvdb map export: occupied voxel centres in the world frame, count = semantic observations\n"
       << "element vertex " << voxels.size() << "\n"
       << "property float x\nproperty float y\nproperty float z\n"
       << "property uchar red\nproperty uchar green\nproperty uchar blue\n"
-      << "property uint count\nend_header\n";
+      << "property int count\nend_header\n";
+  file.write(out.str());
   constexpr std::size_t kBatch = 65536;
   constexpr std::size_t kVertexBytes = 3 * sizeof(float) + 3 + sizeof(uint32_t);
   std::string buffer;
@@ -150,20 +156,20 @@ void write_ply(const fs::path& path, const std::vector<ColouredVoxel>& voxels, P
       const ColouredVoxel& v = voxels[i];
       if (ascii) {
         fmt::format_to(std::back_inserter(buffer), "{} {} {} {} {} {} {}\n", v.position.x(), v.position.y(),
-                       v.position.z(), v.rgb[0], v.rgb[1], v.rgb[2], v.count);
+                       v.position.z(), v.rgb[0], v.rgb[1], v.rgb[2], std::min<uint32_t>(v.count, INT32_MAX));
       } else {
         char vertex[kVertexBytes];
         std::memcpy(vertex, v.position.data(), 3 * sizeof(float));
         std::memcpy(vertex + 12, v.rgb.data(), 3);
-        std::memcpy(vertex + 15, &v.count, sizeof(uint32_t));
+        const int32_t count = static_cast<int32_t>(std::min<uint32_t>(v.count, INT32_MAX));
+        std::memcpy(vertex + 15, &count, sizeof(int32_t));
         buffer.append(vertex, kVertexBytes);
       }
     }
-    out.write(buffer.data(), static_cast<std::streamsize>(buffer.size()));
+    file.write(buffer);
     if (progress) progress(end, voxels.size());
   }
-  out.close();
-  if (!out) throw Error(fmt::format("writing PLY file {} failed: {}", path.string(), std::strerror(errno)));
+  file.commit();
 }
 
 Eigen::Vector2i BirdsEyeImage::pixel_of(double x, double y) const {
@@ -215,7 +221,10 @@ BirdsEyeImage render_birds_eye(const std::vector<ColouredVoxel>& voxels, double 
     return std::make_pair(std::max(first, 0), std::min(last, size - 1));
   };
 
-  std::vector<float> top(static_cast<std::size_t>(width) * height, -std::numeric_limits<float>::infinity());
+  // `top` holds the height of the voxel each pixel shows: the highest, or the lowest for kGround.
+  const bool ground = params.layer == BirdsEyeParams::Layer::kGround;
+  const float none = ground ? std::numeric_limits<float>::infinity() : -std::numeric_limits<float>::infinity();
+  std::vector<float> top(static_cast<std::size_t>(width) * height, none);
   image.rgb = cv::Mat(height, width, CV_8UC3, cv::Scalar(params.background[0], params.background[1], params.background[2]));
   for (const ColouredVoxel& v : voxels) {
     const auto [c0, c1] = pixel_range(v.position.x(), lo.x(), width);
@@ -224,7 +233,7 @@ BirdsEyeImage render_birds_eye(const std::vector<ColouredVoxel>& voxels, double 
       for (int c = c0; c <= c1; ++c) {
         const int row = height - 1 - r;
         float& z = top[static_cast<std::size_t>(row) * width + c];
-        if (v.position.z() <= z) continue;
+        if (ground ? v.position.z() >= z : v.position.z() <= z) continue;
         z = v.position.z();
         image.rgb.at<cv::Vec3b>(row, c) = {v.rgb[0], v.rgb[1], v.rgb[2]};
       }
@@ -257,15 +266,7 @@ void write_png(const fs::path& path, const BirdsEyeImage& image) {
   std::string extension = path.extension().string();
   std::transform(extension.begin(), extension.end(), extension.begin(), [](unsigned char c) { return std::tolower(c); });
   if (extension != ".png") throw Error(fmt::format("bird's-eye image {} must have the extension .png", path.string()));
-  cv::Mat bgr;
-  cv::cvtColor(image.rgb, bgr, cv::COLOR_RGB2BGR);
-  bool ok = false;
-  try {
-    ok = cv::imwrite(path.string(), bgr);
-  } catch (const cv::Exception& e) {
-    throw Error(fmt::format("cannot write PNG file {}: {}", path.string(), e.what()));
-  }
-  if (!ok) throw Error(fmt::format("cannot write PNG file {} (is the directory there and writable?)", path.string()));
+  write_image_atomically(path, image.rgb);
 }
 
 }  // namespace slamvdb

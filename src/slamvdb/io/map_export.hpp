@@ -47,7 +47,8 @@ std::vector<ColouredVoxel> colour_by_pca(const SemanticMap& map);
 using ExportProgress = std::function<void(std::size_t done, std::size_t total)>;
 
 enum class PlyEncoding { kBinaryLittleEndian, kAscii };
-// One vertex per voxel: float x y z, uchar red green blue, uint count. Throws Error on I/O failure.
+// One vertex per voxel: float x y z, uchar red green blue, int count (int32: Open3D's tensor reader
+// drops unsigned properties), written atomically. Throws Error on I/O failure.
 void write_ply(const std::filesystem::path& path, const std::vector<ColouredVoxel>& voxels, PlyEncoding encoding,
                const ExportProgress& progress = {});
 
@@ -56,11 +57,15 @@ struct BirdsEyeParams {
   int max_auto_pixels = 2000;  // longest side when the resolution is automatic
   int max_pixels = 20000;     // longest side allowed for an explicit resolution
   bool hill_shading = false;  // light relief shading from the north-west
+  // Which voxel of a column a pixel shows: the highest (what a camera above sees: tree crowns),
+  // or the lowest (the terrain under them).
+  enum class Layer { kTop, kGround } layer = Layer::kTop;
   Rgb background = {0, 0, 0};
 };
 
-// Top-down orthographic view, world x to the right and y up; a pixel shows the highest voxel whose
-// footprint covers its centre (or, when pixels are larger than voxels, whose centre it contains).
+// Top-down orthographic view, world x to the right and y up; a pixel shows the highest (or, with
+// Layer::kGround, the lowest) voxel whose footprint covers its centre (or, when pixels are larger
+// than voxels, whose centre it contains).
 struct BirdsEyeImage {
   cv::Mat rgb;                  // CV_8UC3 in RGB order
   double resolution = 0.0;      // metres per pixel
@@ -71,6 +76,6 @@ struct BirdsEyeImage {
 
 BirdsEyeImage render_birds_eye(const std::vector<ColouredVoxel>& voxels, double voxel_size,
                                const BirdsEyeParams& params = {});
-void write_png(const std::filesystem::path& path, const BirdsEyeImage& image);  // throws Error
+void write_png(const std::filesystem::path& path, const BirdsEyeImage& image);  // atomically; throws Error
 
 }  // namespace slamvdb

@@ -1,0 +1,26 @@
+#pragma once
+// A navigation grid on disk: PREFIX.pgm + PREFIX.yaml in the ROS map_server / Nav2 "raw" mode
+// (each pixel is the cost, 0 free .. 100 lethal, 255 unknown), and PREFIX.png, the same grid in
+// the terrain classes' colours (obstacles black, unknown grey) with a legend, scale and north.
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include "slamvdb/io/map_pictures.hpp"
+#include "slamvdb/query/nav_grid.hpp"
+
+namespace slamvdb {
+
+struct NavGridFiles {
+  std::filesystem::path pgm, yaml, png;
+};
+
+// class_names / class_colours: of the query set the grid was classified with.
+NavGridFiles write_nav_grid(const std::filesystem::path& prefix, const NavGrid& grid,
+                            const std::vector<std::string>& class_names, const std::vector<Rgb>& class_colours,
+                            const std::vector<Eigen::Vector2d>& trajectory = {});
+
+// The PGM's pixel for a cost (raw mode).
+inline uint8_t nav_pgm_value(int8_t cost) { return cost < 0 ? 255 : static_cast<uint8_t>(cost); }
+
+}  // namespace slamvdb

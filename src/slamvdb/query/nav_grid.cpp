@@ -1,0 +1,95 @@
+#include "slamvdb/query/nav_grid.hpp"
+
+#include <fmt/format.h>
+
+#include <absl/container/flat_hash_map.h>
+
+#include <cmath>
+#include <limits>
+
+#include "slamvdb/core/error.hpp"
+
+namespace slamvdb {
+namespace {
+
+struct Column {
+  int ground_z = std::numeric_limits<int>::max();  // lowest occupied cell
+  std::vector<int> occupied_z;
+};
+
+}  // namespace
+
+std::optional<int8_t> default_terrain_cost(const std::string& name) {
+  static const std::map<std::string, int8_t> kCosts = {{"smooth", 0},     {"rough", 30},   {"bumpy", 60},
+                                                       {"obstacle", 100}, {"active", 100}, {"void", kUnknownCost}};
+  const auto it = kCosts.find(name);
+  if (it == kCosts.end()) return std::nullopt;
+  return it->second;
+}
+
+Eigen::Vector2i NavGrid::cell_of(double x, double y) const {
+  return {static_cast<int>(std::floor((x - origin.x()) / resolution)),
+          static_cast<int>(std::floor((y - origin.y()) / resolution))};
+}
+
+NavGrid build_nav_grid(const SemanticMap& map, const std::vector<ClassifiedCell>& cells, const NavGridOptions& options) {
+  if (!(options.robot_height > 0) || !std::isfinite(options.robot_height))
+    throw Error(fmt::format("robot height {} m must be a positive number", options.robot_height));
+  const double res = map.params().index_cell();  // world occupancy and the index share this grid
+  const float threshold = map.params().occupancy.occupied_threshold;
+  absl::flat_hash_map<std::pair<int, int>, Column> columns;
+  int x0 = std::numeric_limits<int>::max(), y0 = x0, x1 = std::numeric_limits<int>::min(), y1 = x1;
+  for (const WorldOccupancyCell& c : map.world_occupancy()) {
+    if (c.log_odds < threshold) continue;
+    Column& col = columns[{c.cell.x(), c.cell.y()}];
+    col.ground_z = std::min(col.ground_z, c.cell.z());
+    col.occupied_z.push_back(c.cell.z());
+    x0 = std::min(x0, c.cell.x()), x1 = std::max(x1, c.cell.x());
+    y0 = std::min(y0, c.cell.y()), y1 = std::max(y1, c.cell.y());
+  }
+  if (columns.empty()) throw Error("the map has no occupied cells to build a navigation grid from");
+
+  NavGrid grid;
+  grid.resolution = res;
+  grid.width = x1 - x0 + 1;
+  grid.height = y1 - y0 + 1;
+  grid.origin = {x0 * res, y0 * res};
+  const std::size_t n = static_cast<std::size_t>(grid.width) * grid.height;
+  grid.cost.assign(n, kUnknownCost);
+  grid.ground_class.assign(n, -1);
+  grid.obstacle.assign(n, 0);
+
+  // The ground's class: the semantic cell at the ground, else the lowest one within a cell above
+  // it (the camera may have seen the top of a ground voxel the LiDAR put one cell lower).
+  absl::flat_hash_map<std::pair<int, int>, std::pair<int, int>> ground_semantic;  // column -> (z, class)
+  for (const ClassifiedCell& c : cells) {
+    const auto it = columns.find({c.cell.x(), c.cell.y()});
+    if (it == columns.end() || c.match.class_index == kNoClass) continue;
+    const int dz = c.cell.z() - it->second.ground_z;
+    if (dz < 0 || dz > 1) continue;
+    auto [entry, inserted] = ground_semantic.try_emplace(it->first, c.cell.z(), c.match.class_index);
+    if (!inserted && c.cell.z() < entry->second.first) entry->second = {c.cell.z(), c.match.class_index};
+  }
+
+  const int clear_cells = static_cast<int>(std::ceil(options.robot_height / res));
+  for (const auto& [xy, col] : columns) {
+    const std::size_t i = grid.index(xy.first - x0, xy.second - y0);
+    // An obstacle: occupied above the ground cell (more than one cell up, so a ground voxel and
+    // the one above it on a slope do not block), within the robot's height.
+    for (const int z : col.occupied_z) {
+      const int above = z - col.ground_z;
+      if (above >= 2 && above <= clear_cells) grid.obstacle[i] = 1;
+    }
+    if (const auto g = ground_semantic.find(xy); g != ground_semantic.end()) {
+      const int k = g->second.second;
+      if (k < 0 || static_cast<std::size_t>(k) >= options.class_cost.size())
+        throw Error(fmt::format("no cost given for class {} of the navigation grid", k));
+      grid.ground_class[i] = static_cast<int16_t>(k);
+      grid.cost[i] = options.class_cost[static_cast<std::size_t>(k)];
+    }
+    if (grid.obstacle[i]) grid.cost[i] = kLethalCost;
+  }
+  return grid;
+}
+
+}  // namespace slamvdb

@@ -1,0 +1,48 @@
+#pragma once
+// A 2D navigation grid from a classified map (paper section 6.3.2: terrain classes for planning):
+// per world column, the ground (the lowest occupied cell) with its terrain class, and an obstacle
+// wherever something occupied stands above the ground within the robot's height. Costs per class
+// in the ROS costmap range: 0 free .. 100 lethal, -1 unknown. Pure: the writers (PGM / YAML / PNG)
+// are in io/nav_grid_files.
+#include <cstdint>
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "slamvdb/map/semantic_map.hpp"
+#include "slamvdb/query/map_query.hpp"
+
+namespace slamvdb {
+
+inline constexpr int8_t kUnknownCost = -1;
+inline constexpr int8_t kLethalCost = 100;
+
+struct NavGridOptions {
+  double robot_height = 1.5;  // metres above the ground that must be free to pass
+  // Cost of each query-set class (by index); kUnknownCost leaves its columns unknown.
+  std::vector<int8_t> class_cost;
+};
+
+// The default cost of a class name: the paper's terrain classes (smooth 0, rough 30, bumpy 60,
+// obstacle 100, active 100: moving things, void unknown); nullopt for other names.
+std::optional<int8_t> default_terrain_cost(const std::string& class_name);
+
+struct NavGrid {
+  int width = 0, height = 0;
+  double resolution = 0.0;           // metres per cell (the map's index cell)
+  Eigen::Vector2d origin{0, 0};      // world x, y of the lower-left corner of cell (0, 0)
+  // Row-major from the south (row 0 is the lowest y), as ROS OccupancyGrid.
+  std::vector<int8_t> cost;          // 0..100, kUnknownCost
+  std::vector<int16_t> ground_class; // query-set class of the ground, -1 unknown
+  std::vector<uint8_t> obstacle;     // 1: something within the robot height above the ground
+  std::size_t index(int col, int row) const { return static_cast<std::size_t>(row) * width + col; }
+  // Cell containing a world point (may be outside the grid).
+  Eigen::Vector2i cell_of(double x, double y) const;
+};
+
+// `cells`: the map classified (classify_map), any order. Throws Error when class_cost does not have
+// one entry per class used, or the map has no occupied cell.
+NavGrid build_nav_grid(const SemanticMap& map, const std::vector<ClassifiedCell>& cells, const NavGridOptions& options);
+
+}  // namespace slamvdb
