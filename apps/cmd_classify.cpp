@@ -8,6 +8,9 @@
 #include "command_registry.hpp"
 #include "demo_outputs.hpp"
 #include "feature_options.hpp"
+#include "option_checks.hpp"
+#include "slamvdb/io/nav_grid_files.hpp"
+#include "slamvdb/query/nav_grid.hpp"
 #include "slamvdb/query/map_query.hpp"
 #include "slamvdb/store/map_store.hpp"
 
@@ -15,12 +18,49 @@ namespace slamvdb::cli {
 namespace {
 
 struct Options {
-  std::string map, queries, csv;
+  std::string map, queries, csv, grid, png;
   bool no_void_rule = false, ignore_model_id = false;
+  double robot_height = NavGridOptions{}.robot_height;
+  std::vector<std::string> costs;  // NAME=COST
 };
+
+// Cost per class of the query set: --cost overrides, then the paper's terrain classes; a class
+// with neither is a usage error (a planner must not guess).
+std::vector<int8_t> class_costs(const QuerySet& queries, const std::vector<std::string>& overrides) {
+  std::map<std::string, int> given;
+  for (const std::string& item : overrides) {
+    const auto eq = item.find('=');
+    int cost = 0;
+    if (eq == std::string::npos || !CLI::detail::lexical_cast(item.substr(eq + 1), cost) || cost < -1 || cost > 100)
+      usage_error(fmt::format("--cost '{}': expected CLASS=COST with COST in -1 (unknown) .. 100 (lethal)", item));
+    given[item.substr(0, eq)] = cost;
+  }
+  std::vector<int8_t> costs;
+  for (const std::string& name : queries.names) {
+    if (const auto it = given.find(name); it != given.end()) {
+      costs.push_back(static_cast<int8_t>(it->second));
+      given.erase(it);
+    } else if (const auto d = default_terrain_cost(name)) {
+      costs.push_back(*d);
+    } else {
+      usage_error(fmt::format("class '{}' has no default navigation cost: give --cost {}=COST", name, name));
+    }
+  }
+  if (!given.empty()) usage_error(fmt::format("--cost: the query set has no class '{}'", given.begin()->first));
+  return costs;
+}
+
+// The path driven, as far as the map knows it: the submap anchors in the order they were made.
+std::vector<Eigen::Vector2d> submap_path(const SemanticMap& map) {
+  std::vector<Eigen::Vector2d> path;
+  for (const SubmapInfo& s : map.submaps()) path.push_back(s.T_world_submap.translation().head<2>());
+  return path;
+}
 
 void run(const Options& opt) {
   if (!opt.csv.empty()) check_output_file(opt.csv, "--output");
+  if (!opt.png.empty()) check_output_file(opt.png, "--png");
+  if (!opt.grid.empty()) check_output_file(opt.grid + ".pgm", "--grid");
   const QuerySet queries = load_query_set(opt.queries);
   const auto t0 = std::chrono::steady_clock::now();
   const SemanticMap map = load_map(opt.map);
@@ -47,6 +87,24 @@ void run(const Options& opt) {
     write_classified_csv(opt.csv, cells, queries);
     fmt::print("CSV  {}: {} rows\n", opt.csv, cells.size());
   }
+  const std::vector<Rgb> colours = class_colours(queries);
+  if (!opt.png.empty()) {
+    const BirdsEyeImage image = write_class_picture(opt.png, map, cells, queries, submap_path(map));
+    fmt::print("PNG  {} (+ .yaml): {}x{} px at {:.3f} m per pixel, terrain layer by class\n", opt.png, image.rgb.cols,
+               image.rgb.rows, image.resolution);
+  }
+  if (!opt.grid.empty()) {
+    NavGridOptions options;
+    options.robot_height = opt.robot_height;
+    options.class_cost = class_costs(queries, opt.costs);
+    const NavGrid grid = build_nav_grid(map, cells, options);
+    const NavGridFiles files = write_nav_grid(opt.grid, grid, queries.names, colours, submap_path(map));
+    std::size_t lethal = 0, unknown = 0;
+    for (const int8_t c : grid.cost) lethal += c == kLethalCost, unknown += c == kUnknownCost;
+    fmt::print("grid {} + {} + {}: {}x{} cells of {:.2f} m, {} lethal, {} unknown (robot height {} m)\n",
+               files.pgm.string(), files.yaml.string(), files.png.string(), grid.width, grid.height, grid.resolution,
+               lethal, unknown, opt.robot_height);
+  }
 }
 
 void add(CLI::App& root) {
@@ -60,9 +118,27 @@ void add(CLI::App& root) {
       ->required()
       ->check(CLI::ExistingFile);
   cmd->add_option("-o,--output", opt->csv, "Write one row per voxel: x,y,z,class,score,margin,count (CSV)");
+  cmd->add_option("--png", opt->png,
+                  "Write the terrain seen from above: the class of the ground of every column (not the top: tree "
+                  "crowns do not hide it), with a legend, scale bar, north arrow, the submap path, and a map_server "
+                  ".yaml beside it");
+  cmd->add_option("--grid", opt->grid,
+                  "Write a navigation grid PREFIX.pgm + PREFIX.yaml (ROS map_server / Nav2, mode raw: the pixel is the "
+                  "cost, 0 free .. 100 lethal, 255 unknown) and PREFIX.png (classes, obstacles black, legend)");
+  cmd->add_option("--robot-height", opt->robot_height,
+                  "Grid: something occupied above the ground up to this height (m) is an obstacle")
+      ->capture_default_str()
+      ->check(finite_range(0.1, 100));
+  cmd->add_option("--cost", opt->costs,
+                  "Grid: the cost of a class, CLASS=COST (-1 unknown .. 100 lethal; repeatable). Defaults: smooth 0, "
+                  "rough 30, bumpy 60, obstacle 100, active 100, void unknown");
   cmd->add_flag("--no-void-rule", opt->no_void_rule, "Let void classes win (the paper's rule is on by default)");
   cmd->add_flag("--ignore-model-id", opt->ignore_model_id,
                 "Accept queries whose model id differs from the map's (the dimension is still checked)");
+  cmd->parse_complete_callback([opt] {
+    if (!opt->png.empty() && std::filesystem::path(opt->png).extension() != ".png")
+      usage_error(fmt::format("--png {}: the picture is written as .png", opt->png));
+  });
   cmd->callback([opt] { run(*opt); });
 }
 

@@ -9,6 +9,7 @@
 #include "slamvdb/core/error.hpp"
 #include "slamvdb/inference/simulated_encoders.hpp"
 #include "slamvdb/io/map_export.hpp"
+#include "slamvdb/io/map_pictures.hpp"
 #include "slamvdb/ontology/ontology.hpp"
 #include "slamvdb/query/map_query.hpp"
 
@@ -34,6 +35,11 @@ inline void write_classified_csv(const std::filesystem::path& path, const std::v
 template <class Colour>
 std::vector<ColouredVoxel> coloured_map(const SemanticMap& map, const std::vector<ClassifiedCell>& cells, Colour&& colour_of) {
   std::vector<ColouredVoxel> voxels = colour_occupied_voxels(map, [](const float*) { return Rgb{0, 0, 0}; });
+  // Voxels without semantics stay in the picture as context, dimmed so that no class colour (the
+  // ontology's smooth is a light grey) is mistaken for them.
+  for (ColouredVoxel& v : voxels)
+    if (v.count == 0)
+      for (uint8_t& ch : v.rgb) ch = static_cast<uint8_t>(ch / 2);
   // colour_occupied_voxels writes cells in key order, as sort_by_cell sorts `cells`: match by position.
   std::size_t j = 0;
   for (ColouredVoxel& v : voxels) {
@@ -44,15 +50,69 @@ std::vector<ColouredVoxel> coloured_map(const SemanticMap& map, const std::vecto
   return voxels;
 }
 
-// classes.png: the bird's-eye class map (`cells` sorted by cell).
-inline void write_class_outputs(const std::filesystem::path& out, const SemanticMap& map,
-                                const std::vector<ClassifiedCell>& cells, const QuerySet& queries, const Ontology&) {
+inline std::vector<Rgb> class_colours(const QuerySet& queries) {
+  std::vector<Rgb> colours;
+  for (int k = 0; k < queries.size(); ++k)
+    colours.push_back(queries.colours.empty() ? score_colour(queries.size() > 1 ? k / (queries.size() - 1.0f) : 0.f)
+                                              : queries.colours[k]);
+  return colours;
+}
+
+// The terrain seen from above (the ground voxel of every column, coloured by class) with a legend,
+// scale bar, north arrow and the driven path; PNG + map_server YAML. `cells` sorted by cell.
+inline BirdsEyeImage write_class_picture(const std::filesystem::path& png, const SemanticMap& map,
+                                         const std::vector<ClassifiedCell>& cells, const QuerySet& queries,
+                                         const std::vector<Eigen::Vector2d>& path) {
+  const std::vector<Rgb> colours = class_colours(queries);
   const auto voxels = coloured_map(map, cells, [&](std::size_t j) {
     const int k = cells[j].match.class_index;
-    if (k == kNoClass || queries.colours.empty()) return Rgb{255, 255, 255};
-    return Rgb{queries.colours[k][0], queries.colours[k][1], queries.colours[k][2]};
+    return k == kNoClass ? Rgb{255, 255, 255} : colours[static_cast<std::size_t>(k)];
   });
-  write_png(out / "classes.png", render_birds_eye(voxels, map.params().occupancy.voxel_size));
+  BirdsEyeParams params;
+  params.layer = BirdsEyeParams::Layer::kGround;
+  BirdsEyeImage image = render_birds_eye(voxels, map.params().occupancy.voxel_size, params);
+  PictureAnnotations notes;
+  notes.title = "terrain classes (ground of each column)";
+  for (int k = 0; k < queries.size(); ++k) notes.legend.emplace_back(queries.names[k], colours[k]);
+  notes.legend.emplace_back("no semantics (dark grey by height)", Rgb{90, 90, 90});
+  if (path.size() >= 2) notes.legend.emplace_back("path (submap anchors)", Rgb{255, 60, 60});
+  notes.trajectory = path;
+  annotate(image, notes);
+  write_png_with_yaml(png, image);
+  return image;
+}
+
+// A similarity heat map seen from above: the best score of every column on the viridis ramp with
+// a colour bar, other occupied voxels grey; PNG + map_server YAML. `cells` sorted by cell, scores
+// in match.score.
+inline BirdsEyeImage write_score_picture(const std::filesystem::path& png, const SemanticMap& map,
+                                         const std::vector<ClassifiedCell>& cells, const std::string& label,
+                                         float lo, float hi, const std::vector<Eigen::Vector2d>& path = {}) {
+  auto voxels = coloured_map(map, cells, [&](std::size_t j) {
+    return score_colour(hi > lo ? (cells[j].match.score - lo) / (hi - lo) : 1.0f);
+  });
+  // The best score of a column on top: scored voxels are lifted above the rest.
+  std::size_t j = 0;
+  for (ColouredVoxel& v : voxels) {
+    if (v.count == 0) continue;
+    while (j < cells.size() && (cells[j].position_world.cast<float>() - v.position).squaredNorm() > 1e-6f) ++j;
+    if (j < cells.size()) v.position.z() = 1e6f + cells[j].match.score;
+  }
+  BirdsEyeImage image = render_birds_eye(voxels, map.params().occupancy.voxel_size);
+  PictureAnnotations notes;
+  notes.colour_bar = PictureAnnotations::ColourBar{label, lo, hi};
+  notes.trajectory = path;
+  annotate(image, notes);
+  write_png_with_yaml(png, image);
+  return image;
+}
+
+// classes.png: the terrain class map (`cells` sorted by cell).
+inline void write_class_outputs(const std::filesystem::path& out, const SemanticMap& map,
+                                const std::vector<ClassifiedCell>& cells, const QuerySet& queries, const Ontology&) {
+  std::vector<Eigen::Vector2d> path;
+  for (const SubmapInfo& s : map.submaps()) path.push_back(s.T_world_submap.translation().head<2>());
+  write_class_picture(out / "classes.png", map, cells, queries, path);
 }
 
 // query_<text>.png: the similarity of every voxel to a text query, seen from above.
@@ -62,13 +122,13 @@ inline void write_query_outputs(const std::filesystem::path& out, const Semantic
   const std::vector<float> q = encoder.encode(text);
   const auto scored = similarity_search(map, q);
   std::vector<ClassifiedCell> cells;
-  for (const ScoredCell& c : scored) cells.push_back({c.cell, c.position_world, c.count, {0, c.score, 0}});
+  float lo = 1, hi = -1;
+  for (const ScoredCell& c : scored) {
+    cells.push_back({c.cell, c.position_world, c.count, {0, c.score, 0}});
+    lo = std::min(lo, c.score), hi = std::max(hi, c.score);
+  }
   sort_by_cell(cells);
-  const auto voxels = coloured_map(map, cells, [&](std::size_t j) {
-    const float t = std::clamp(cells[j].match.score, 0.0f, 1.0f);  // cosine 0..1: blue..yellow
-    return Rgb{static_cast<uint8_t>(255 * t), static_cast<uint8_t>(200 * t), static_cast<uint8_t>(255 * (1 - t))};
-  });
-  write_png(out / fmt::format("query_{}.png", text), render_birds_eye(voxels, map.params().occupancy.voxel_size));
+  write_score_picture(out / fmt::format("query_{}.png", text), map, cells, fmt::format("cosine to '{}'", text), lo, hi);
 }
 
 }  // namespace slamvdb::cli

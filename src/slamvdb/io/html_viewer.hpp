@@ -13,8 +13,6 @@
 
 namespace slamvdb {
 
-using Rgb8 = std::array<std::uint8_t, 3>;
-
 struct HtmlViewerScene {
   std::string title;
   double voxel_size = 0.25;       // m: the drawn point size

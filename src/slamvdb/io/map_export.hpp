@@ -14,7 +14,7 @@
 
 namespace slamvdb {
 
-using Rgb = std::array<uint8_t, 3>;
+using Rgb = Rgb8;
 
 // One occupied voxel in the world frame.
 struct ColouredVoxel {

@@ -20,6 +20,7 @@ NavGridFiles write_nav_grid(const std::filesystem::path& prefix, const NavGrid& 
   picture.rgb = cv::Mat(grid.height, grid.width, CV_8UC3);
   picture.resolution = grid.resolution;
   picture.min_xy = grid.origin;
+  std::vector<bool> shown(class_names.size(), false);
   for (int row = 0; row < grid.height; ++row)
     for (int col = 0; col < grid.width; ++col) {
       const std::size_t i = grid.index(col, row);
@@ -28,8 +29,10 @@ NavGridFiles write_nav_grid(const std::filesystem::path& prefix, const NavGrid& 
       Rgb c{110, 110, 110};  // unknown
       if (grid.obstacle[i]) {
         c = {0, 0, 0};
-      } else if (const int k = grid.ground_class[i]; k >= 0 && static_cast<std::size_t>(k) < class_colours.size()) {
+      } else if (const int k = grid.ground_class[i];
+                 grid.cost[i] != kUnknownCost && k >= 0 && static_cast<std::size_t>(k) < class_colours.size()) {
         c = class_colours[static_cast<std::size_t>(k)];
+        if (static_cast<std::size_t>(k) < shown.size()) shown[static_cast<std::size_t>(k)] = true;
       }
       picture.rgb.at<cv::Vec3b>(image_row, col) = {c[0], c[1], c[2]};
     }
@@ -39,9 +42,10 @@ NavGridFiles write_nav_grid(const std::filesystem::path& prefix, const NavGrid& 
   PictureAnnotations notes;
   notes.title = "navigation grid";
   for (std::size_t k = 0; k < class_names.size() && k < class_colours.size(); ++k)
-    notes.legend.emplace_back(class_names[k], class_colours[k]);
+    if (shown[k]) notes.legend.emplace_back(class_names[k], class_colours[k]);
   notes.legend.emplace_back("obstacle within robot height", Rgb{0, 0, 0});
-  notes.legend.emplace_back("unknown", Rgb{110, 110, 110});
+  notes.legend.emplace_back("unknown (not seen, or no class)", Rgb{110, 110, 110});
+  if (trajectory.size() >= 2) notes.legend.emplace_back("path (submap anchors)", Rgb{255, 60, 60});
   notes.trajectory = trajectory;
   annotate(picture, notes);
   write_image_atomically(files.png, picture.rgb);

@@ -23,9 +23,10 @@
 #include <string_view>
 #include <vector>
 
+#include "slamvdb/core/types.hpp"
+
 namespace slamvdb {
 
-using Rgb8 = std::array<uint8_t, 3>;
 
 struct OntologyClass {
   std::string name;
