@@ -10,7 +10,12 @@
 #include "command_registry.hpp"
 #include "feature_options.hpp"
 #include "slamvdb/inference/simulated_encoders.hpp"
+#include "demo_outputs.hpp"
+#include "slamvdb/io/atomic_file.hpp"
+#include "slamvdb/io/html_viewer.hpp"
 #include "slamvdb/io/image_io.hpp"
+#include "slamvdb/io/map_pictures.hpp"
+#include "slamvdb/io/npy.hpp"
 #include "slamvdb/query/map_query.hpp"
 #include "slamvdb/store/map_store.hpp"
 
@@ -19,7 +24,7 @@ namespace {
 
 struct Options {
   std::string map, queries, output, at_csv, text_model, image_model;
-  std::vector<std::string> text, not_text, classes, not_classes, images, at;
+  std::vector<std::string> text, not_text, classes, not_classes, images, at, vectors, not_vectors;
   std::size_t top_k = 100;
   float threshold = -std::numeric_limits<float>::infinity();
   uint64_t sim_seed = 1;
@@ -96,6 +101,19 @@ Eigen::VectorXf build_query(const Options& opt, const SemanticMap& map) {
     for (const auto& c : opt.classes) positive.push_back(row(c));
     for (const auto& c : opt.not_classes) negative.push_back(row(c));
   }
+  const auto read_vectors = [&](const std::vector<std::string>& files, std::vector<Eigen::VectorXf>& into) {
+    for (const auto& file : files)
+      for (const std::vector<float>& v : read_npy_vectors(file)) {
+        if (static_cast<int>(v.size()) != map.params().semantic.dim)
+          throw Error(fmt::format("{}: a {}-d vector, but the map's embeddings are {}-d", file, v.size(),
+                                  map.params().semantic.dim));
+        if (!std::all_of(v.begin(), v.end(), [](float x) { return std::isfinite(x); }))
+          throw Error(fmt::format("{}: the vector holds a non-finite value", file));
+        into.push_back(to_vector(v));
+      }
+  };
+  read_vectors(opt.vectors, positive);
+  read_vectors(opt.not_vectors, negative);
   if (!opt.images.empty()) {
     std::unique_ptr<ImageEncoder> encoder;
     bool labels = false;
@@ -124,8 +142,14 @@ Eigen::VectorXf build_query(const Options& opt, const SemanticMap& map) {
   return composite_query(positive, negative);
 }
 
-void write_or_throw(std::ofstream& out, const std::string& file) {
-  if (!out.flush()) throw Error(fmt::format("cannot write {}", file));
+// The output's format from its extension: .csv, .ply, .png (+ .yaml) or .html; "" without output.
+std::string output_format(const std::string& output) {
+  if (output.empty()) return "";
+  std::string ext = std::filesystem::path(output).extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
+  if (ext != ".csv" && ext != ".ply" && ext != ".png" && ext != ".html")
+    throw CLI::ValidationError("--output", fmt::format("'{}': write .csv, .ply, .png or .html", output));
+  return ext;
 }
 
 void run_points(const Options& opt, const SemanticMap& map) {
@@ -152,9 +176,7 @@ void run_points(const Options& opt, const SemanticMap& map) {
   if (opt.output.empty()) {
     fmt::print("{}", csv);
   } else {
-    std::ofstream out(opt.output, std::ios::binary);
-    out << csv;
-    write_or_throw(out, opt.output);
+    write_file_atomically(opt.output, csv);
     fmt::print("{} points, {} in a semantic voxel: {}\n", answers.size(),
                std::count_if(answers.begin(), answers.end(), [](const PointQuery& a) { return a.found; }), opt.output);
   }
@@ -162,9 +184,13 @@ void run_points(const Options& opt, const SemanticMap& map) {
 
 void run(const Options& opt) {
   const bool spatial = !opt.at.empty() || !opt.at_csv.empty();
-  const bool similarity = !opt.text.empty() || !opt.classes.empty() || !opt.images.empty();
+  const bool similarity = !opt.text.empty() || !opt.classes.empty() || !opt.images.empty() || !opt.vectors.empty();
   if (spatial == similarity)
-    throw CLI::ValidationError("query", "give either a query (--text, --class, --image) or points (--at, --at-csv)");
+    throw CLI::ValidationError("query",
+                               "give either a query (--text, --class, --image, --vector) or points (--at, --at-csv)");
+  const std::string format = output_format(opt.output);
+  if (spatial && !format.empty() && format != ".csv")
+    throw CLI::ValidationError("--output", "point look-ups are written as .csv");
   if ((!opt.classes.empty() || !opt.not_classes.empty()) && opt.queries.empty())
     throw CLI::ValidationError("--class", "needs --queries QUERIES.json");
   if (spatial) {
@@ -185,15 +211,44 @@ void run(const Options& opt) {
   for (std::size_t i = 0; i < results.size() && i < 10; ++i)
     fmt::print("| {} | {:.2f} | {:.2f} | {:.2f} | {:.4f} | {} |\n", i + 1, results[i].position_world.x(),
                results[i].position_world.y(), results[i].position_world.z(), results[i].score, results[i].count);
-  if (!opt.output.empty()) {
-    std::ofstream out(opt.output, std::ios::binary);
-    out << "rank,x,y,z,score,count\n";
+  if (opt.output.empty()) return;
+  const std::string label = fmt::format("cosine similarity to the query ({} voxels)", results.size());
+  float lo = 1, hi = -1;
+  for (const ScoredCell& r : results) lo = std::min(lo, r.score), hi = std::max(hi, r.score);
+  if (format == ".csv") {
+    std::string csv = "rank,x,y,z,score,count\n";
     for (std::size_t i = 0; i < results.size(); ++i)
-      out << fmt::format("{},{:.3f},{:.3f},{:.3f},{:.6f},{}\n", i + 1, results[i].position_world.x(),
+      csv += fmt::format("{},{:.3f},{:.3f},{:.3f},{:.6f},{}\n", i + 1, results[i].position_world.x(),
                          results[i].position_world.y(), results[i].position_world.z(), results[i].score,
                          results[i].count);
-    write_or_throw(out, opt.output);
+    write_file_atomically(opt.output, csv);
     fmt::print("CSV  {}: {} rows\n", opt.output, results.size());
+  } else if (format == ".png") {
+    std::vector<ClassifiedCell> cells;
+    for (const ScoredCell& c : results) cells.push_back({c.cell, c.position_world, c.count, {0, c.score, 0}});
+    sort_by_cell(cells);
+    const BirdsEyeImage image = write_score_picture(opt.output, map, cells, "cosine similarity", lo, hi);
+    fmt::print("PNG  {} (+ .yaml): heat map of the {} results from above, {}x{} px, colour bar {:.3f}..{:.3f}\n",
+               opt.output, results.size(), image.rgb.cols, image.rgb.rows, lo, hi);
+  } else {
+    // Results coloured by score on the viridis ramp, in rank order.
+    std::vector<ColouredVoxel> voxels;
+    for (const ScoredCell& r : results)
+      voxels.push_back({r.position_world.cast<float>(), score_colour(hi > lo ? (r.score - lo) / (hi - lo) : 1.f), r.count});
+    if (format == ".ply") {
+      write_ply(opt.output, voxels, PlyEncoding::kBinaryLittleEndian);
+      fmt::print("PLY  {}: {} voxels coloured by score ({:.3f}..{:.3f}, viridis)\n", opt.output, voxels.size(), lo, hi);
+    } else {
+      HtmlViewerScene scene;
+      scene.title = fmt::format("slamvdb query on {}", opt.map);
+      scene.voxel_size = map.params().occupancy.voxel_size;
+      for (const ColouredVoxel& v : voxels) scene.positions.push_back(v.position.cast<double>()), scene.colours.push_back(v.rgb);
+      std::vector<Rgb8> stops;
+      for (int i = 0; i <= 8; ++i) stops.push_back(score_colour(i / 8.0f));
+      scene.colour_bar = HtmlViewerScene::ColourBar{"cosine similarity", lo, hi, stops};
+      write_html_viewer(opt.output, scene);
+      fmt::print("HTML {}: {} voxels coloured by score, open it in a browser\n", opt.output, voxels.size());
+    }
   }
 }
 
@@ -211,6 +266,12 @@ void add(CLI::App& root) {
   cmd->add_option("--class", opt->classes, "A class of --queries as the query (repeatable)");
   cmd->add_option("--not-class", opt->not_classes, "A class of --queries to subtract (repeatable)");
   cmd->add_option("--image", opt->images, "An image as the query (repeatable)")->check(CLI::ExistingFile);
+  cmd->add_option("--vector", opt->vectors,
+                  "Query vectors from a float32/float16 .npy of shape (dim,) or (n, dim), each a positive term "
+                  "(repeatable)")
+      ->check(CLI::ExistingFile);
+  cmd->add_option("--not-vector", opt->not_vectors, "Query vectors (.npy) to subtract (repeatable)")
+      ->check(CLI::ExistingFile);
   cmd->add_option("--text-model", opt->text_model, "TorchScript CLIP text encoder (default: the SIMULATED one)")
       ->check(CLI::ExistingFile);
   cmd->add_option("--image-model", opt->image_model,
@@ -227,11 +288,13 @@ void add(CLI::App& root) {
   cmd->add_option("--at", opt->at, "A world point x,y,z to look up (repeatable)");
   cmd->add_option("--at-csv", opt->at_csv, "A CSV file of world points x,y,z to look up")->check(CLI::ExistingFile);
   cmd->add_option("-o,--output", opt->output,
-                  "Write the results as CSV (similarity: rank,x,y,z,score,count; points: "
-                  "x,y,z,found,cell_x,cell_y,cell_z,count,class,score,margin)");
+                  "Write the results; the format follows the extension: .csv (similarity: rank,x,y,z,score,count; "
+                  "points: x,y,z,found,cell_x,cell_y,cell_z,count,class,score,margin), .ply (voxels coloured by score), "
+                  ".png (heat map from above with a colour bar, and a map_server .yaml beside it), .html (3D view)");
   cmd->add_flag("--no-void-rule", opt->no_void_rule, "With --queries and --at: let void classes win");
   cmd->add_flag("--ignore-model-id", opt->ignore_model_id,
                 "Accept an encoder or queries whose model id differs from the map's (the dimension is still checked)");
+  cmd->parse_complete_callback([opt] { output_format(opt->output); });
   cmd->callback([opt] { run(*opt); });
 }
 

@@ -10,6 +10,9 @@
 #include "slamvdb/inference/simulated_encoders.hpp"
 #include "slamvdb/io/map_export.hpp"
 #include "slamvdb/io/map_pictures.hpp"
+#include "slamvdb/map/keys.hpp"
+
+#include <absl/container/flat_hash_map.h>
 #include "slamvdb/ontology/ontology.hpp"
 #include "slamvdb/query/map_query.hpp"
 
@@ -30,22 +33,27 @@ inline void write_classified_csv(const std::filesystem::path& path, const std::v
   if (!out.flush()) throw Error(fmt::format("cannot write {}", path.string()));
 }
 
-// The map's occupied voxels in the world, semantic ones coloured by `colour_of(cell index)`, the
-// others grey by height (see colour_occupied_voxels).
+// The map's occupied voxels in the world, semantic ones coloured by `colour_of(index into cells)`
+// when `cells` has them (any subset, e.g. search results), the others grey by height (dimmed).
 template <class Colour>
 std::vector<ColouredVoxel> coloured_map(const SemanticMap& map, const std::vector<ClassifiedCell>& cells, Colour&& colour_of) {
   std::vector<ColouredVoxel> voxels = colour_occupied_voxels(map, [](const float*) { return Rgb{0, 0, 0}; });
-  // Voxels without semantics stay in the picture as context, dimmed so that no class colour (the
-  // ontology's smooth is a light grey) is mistaken for them.
-  for (ColouredVoxel& v : voxels)
-    if (v.count == 0)
-      for (uint8_t& ch : v.rgb) ch = static_cast<uint8_t>(ch / 2);
-  // colour_occupied_voxels writes cells in key order, as sort_by_cell sorts `cells`: match by position.
-  std::size_t j = 0;
+  absl::flat_hash_map<IndexCellKey, std::size_t> index_of;
+  index_of.reserve(cells.size());
+  for (std::size_t j = 0; j < cells.size(); ++j) index_of.emplace(cells[j].cell, j);
+  const double inv_cell = 1.0 / map.params().index_cell();
   for (ColouredVoxel& v : voxels) {
-    if (v.count == 0) continue;
-    while (j < cells.size() && (cells[j].position_world.cast<float>() - v.position).squaredNorm() > 1e-6f) ++j;
-    if (j < cells.size()) v.rgb = colour_of(j);
+    const auto it = v.count ? index_of.find(key_of_point<IndexCellKey>(v.position.cast<double>(), inv_cell))
+                            : index_of.end();
+    if (it != index_of.end()) {
+      v.rgb = colour_of(it->second);
+    } else {
+      // Context without semantics (or not among the cells): dimmed, so that no class colour (the
+      // ontology's smooth is a light grey) is mistaken for it.
+      if (v.count) v.rgb = {128, 128, 128};
+      for (uint8_t& ch : v.rgb) ch = static_cast<uint8_t>(ch / 2);
+      v.count = 0;
+    }
   }
   return voxels;
 }
@@ -91,13 +99,13 @@ inline BirdsEyeImage write_score_picture(const std::filesystem::path& png, const
   auto voxels = coloured_map(map, cells, [&](std::size_t j) {
     return score_colour(hi > lo ? (cells[j].match.score - lo) / (hi - lo) : 1.0f);
   });
-  // The best score of a column on top: scored voxels are lifted above the rest.
-  std::size_t j = 0;
-  for (ColouredVoxel& v : voxels) {
-    if (v.count == 0) continue;
-    while (j < cells.size() && (cells[j].position_world.cast<float>() - v.position).squaredNorm() > 1e-6f) ++j;
-    if (j < cells.size()) v.position.z() = 1e6f + cells[j].match.score;
-  }
+  // The best score of a column on top: scored voxels (count kept by coloured_map) are lifted
+  // above the rest, ordered by score.
+  const double inv_cell = 1.0 / map.params().index_cell();
+  absl::flat_hash_map<IndexCellKey, float> score_of;
+  for (const ClassifiedCell& c : cells) score_of.emplace(c.cell, c.match.score);
+  for (ColouredVoxel& v : voxels)
+    if (v.count) v.position.z() = 1e6f + score_of.at(key_of_point<IndexCellKey>(v.position.cast<double>(), inv_cell));
   BirdsEyeImage image = render_birds_eye(voxels, map.params().occupancy.voxel_size);
   PictureAnnotations notes;
   notes.colour_bar = PictureAnnotations::ColourBar{label, lo, hi};

@@ -74,8 +74,9 @@ void annotate(BirdsEyeImage& image, const PictureAnnotations& a) {
   for (const auto& [name, colour] : a.legend)
     width = std::max(width, cv::getTextSize(name, kFont, scale, 1, nullptr).width + line + pad);
   if (!a.title.empty()) width = std::max(width, cv::getTextSize(a.title, kFont, scale, 1, nullptr).width);
-  if (a.colour_bar) width = std::max(width, 220);
-  const int bar_rows = a.colour_bar ? 2 : 0;
+  if (a.colour_bar)
+    width = std::max({width, 220, cv::getTextSize(a.colour_bar->label, kFont, scale * 0.9, 1, nullptr).width});
+  const int bar_rows = a.colour_bar ? 3 : 0;
   const int box_h = pad * 2 + line * static_cast<int>(rows.size() + a.legend.size() + bar_rows);
   if (box_h > 2 * pad) {
     panel(m, cv::Rect(0, 0, width + 2 * pad, box_h));
@@ -88,6 +89,8 @@ void annotate(BirdsEyeImage& image, const PictureAnnotations& a) {
       y += line;
     }
     if (a.colour_bar) {
+      cv::putText(m, a.colour_bar->label, {pad, y}, kFont, scale * 0.9, kInk, 1, cv::LINE_AA);
+      y += line;
       const int x0 = pad, bar_w = width, top = y - line + line / 3;
       for (int i = 0; i < bar_w; ++i) {
         const Rgb c = score_colour_ramp()[static_cast<std::size_t>(i * 255 / std::max(1, bar_w - 1))];
@@ -98,8 +101,6 @@ void annotate(BirdsEyeImage& image, const PictureAnnotations& a) {
       cv::putText(m, lo, {x0, y}, kFont, scale, kInk, 1, cv::LINE_AA);
       const int hi_w = cv::getTextSize(hi, kFont, scale, 1, nullptr).width;
       cv::putText(m, hi, {x0 + bar_w - hi_w, y}, kFont, scale, kInk, 1, cv::LINE_AA);
-      const int label_w = cv::getTextSize(a.colour_bar->label, kFont, scale * 0.9, 1, nullptr).width;
-      cv::putText(m, a.colour_bar->label, {x0 + (bar_w - label_w) / 2, y}, kFont, scale * 0.9, kInk, 1, cv::LINE_AA);
     }
   }
   // Bottom left: a scale bar of a round length, about a fifth of the width.

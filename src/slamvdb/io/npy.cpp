@@ -138,16 +138,8 @@ class MappedFile {
   std::size_t size_ = 0;
 };
 
-}  // namespace
-
-FeatureMap read_feature_npy(const std::filesystem::path& path) {
-  FeatureMap map;
-  read_feature_npy(path, map);
-  return map;
-}
-
-void read_feature_npy(const std::filesystem::path& path, FeatureMap& map) {
-  const MappedFile file(path);
+// The header of a mapped .npy file and where its data starts; Error naming the file otherwise.
+std::pair<NpyHeader, std::size_t> read_header(const MappedFile& file, const std::filesystem::path& path) {
   const unsigned char* bytes = file.data();
   if (file.size() < kMagicSize + 2 || std::memcmp(bytes, kMagic, kMagicSize) != 0)
     throw Error(fmt::format("{} is not an npy file (bad magic)", path));
@@ -159,8 +151,56 @@ void read_feature_npy(const std::filesystem::path& path, FeatureMap& map) {
   for (std::size_t i = 0; i < len_bytes; ++i)
     header_len |= static_cast<std::size_t>(bytes[kMagicSize + 2 + i]) << (8 * i);
   if (file.size() < preamble + header_len) throw Error(fmt::format("npy file {} is truncated inside its header", path));
-  const NpyHeader h = parse_header(std::string(reinterpret_cast<const char*>(bytes + preamble), header_len), path);
+  return {parse_header(std::string(reinterpret_cast<const char*>(bytes + preamble), header_len), path),
+          preamble + header_len};
+}
 
+}  // namespace
+
+std::vector<std::vector<float>> read_npy_vectors(const std::filesystem::path& path) {
+  const MappedFile file(path);
+  const auto [h, offset] = read_header(file, path);
+  if (h.descr != "<f4" && h.descr != "<f2")
+    throw Error(fmt::format("npy file {}: dtype '{}' is not supported, expected float32 '<f4' or float16 '<f2'", path,
+                            escape_control(h.descr, 40)));
+  if (h.fortran_order && h.shape.size() == 2 && h.shape[0] > 1)
+    throw Error(fmt::format("npy file {}: fortran_order arrays are not supported, save it C-ordered", path));
+  if (h.shape.empty() || h.shape.size() > 2 || h.shape.back() == 0 || (h.shape.size() == 2 && h.shape[0] == 0))
+    throw Error(fmt::format("npy file {}: shape ({}) is not (dim,) or (n, dim)", path, fmt::join(h.shape, ", ")));
+  const std::size_t rows = h.shape.size() == 2 ? h.shape[0] : 1, dim = h.shape.back();
+  const std::size_t element = h.descr == "<f4" ? 4 : 2;
+  if (rows > (file.size() - offset) / element / dim + 1 || (file.size() - offset) != rows * dim * element)
+    throw Error(fmt::format("npy file {}: shape ({}) needs {} bytes of data, found {}", path, fmt::join(h.shape, ", "),
+                            rows * dim * element, file.size() - offset));
+  std::vector<std::vector<float>> vectors(rows, std::vector<float>(dim));
+  const unsigned char* data = file.data() + offset;
+  for (std::size_t r = 0; r < rows; ++r)
+    for (std::size_t c = 0; c < dim; ++c) {
+      const std::size_t i = r * dim + c;
+      if (element == 4) {
+        std::memcpy(&vectors[r][c], data + 4 * i, 4);
+      } else {
+        uint16_t half;
+        std::memcpy(&half, data + 2 * i, 2);
+        vectors[r][c] = half_to_float(half);
+      }
+    }
+  return vectors;
+}
+
+namespace {
+}  // namespace
+
+FeatureMap read_feature_npy(const std::filesystem::path& path) {
+  FeatureMap map;
+  read_feature_npy(path, map);
+  return map;
+}
+
+void read_feature_npy(const std::filesystem::path& path, FeatureMap& map) {
+  const MappedFile file(path);
+  const auto [h, data_offset] = read_header(file, path);
+  const std::size_t preamble = data_offset, header_len = 0;
   if (h.descr != "<f4" && h.descr != "<f2")
     throw Error(
         fmt::format("npy file {}: dtype '{}' is not supported, expected little-endian float32 '<f4' "
@@ -193,7 +233,7 @@ void read_feature_npy(const std::filesystem::path& path, FeatureMap& map) {
   map.height = static_cast<int>(shape[1]);
   map.width = static_cast<int>(shape[2]);
   map.data.resize(channels * pixels);
-  const unsigned char* payload = bytes + preamble + header_len;
+  const unsigned char* payload = file.data() + preamble + header_len;
   if (element == 4)
     transpose<float>(payload, map.data.data(), channels, pixels, [](float v) { return v; });
   else

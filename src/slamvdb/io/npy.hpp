@@ -24,6 +24,10 @@ void read_feature_npy(const std::filesystem::path& path, FeatureMap& map);
 // leaves no partial file, and an existing file is replaced only by a complete one.
 void write_feature_npy(const std::filesystem::path& path, const FeatureMap& map);
 
+// Vectors from a float32 or float16 array of shape (dim,) or (n, dim): one row per vector (query
+// vectors for `slamvdb query --vector`). Throws Error naming the file for anything else.
+std::vector<std::vector<float>> read_npy_vectors(const std::filesystem::path& path);
+
 // Writes a C-ordered float32 array of the given shape (format version 1.0).
 void write_npy_array(const std::filesystem::path& path, const float* data, const std::vector<std::size_t>& shape);
 
