@@ -169,15 +169,9 @@ struct Dispatch {
   void (*add_scaled_f16)(float*, const uint16_t*, float, std::size_t);
 };
 
-// F16C from CPUID leaf 1 (ECX bit 29): clang 14's __builtin_cpu_supports does not know "f16c".
-bool cpu_has_f16c() {
-  unsigned eax = 0, ebx = 0, ecx = 0, edx = 0;
-  return __get_cpuid(1, &eax, &ebx, &ecx, &edx) && (ecx & bit_F16C) != 0;
-}
-
 Dispatch choose() {
   __builtin_cpu_init();
-  if (__builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma") && cpu_has_f16c())
+  if (__builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma") && kernels::cpu_has_f16c())
     return {true, half_to_float_avx2, float_to_half_avx2, running_mean_f16_avx2, dot_f16_avx2, squared_norm_f16_avx2,
             add_scaled_f16_avx2};
   return {false, half_to_float_scalar, float_to_half_scalar, running_mean_f16_scalar, dot_f16_scalar,
@@ -192,6 +186,12 @@ const Dispatch& dispatch() {
 }  // namespace
 
 bool has_avx2_f16c() { return dispatch().avx2; }
+
+// F16C from CPUID leaf 1 (ECX bit 29): clang 14's __builtin_cpu_supports does not know "f16c".
+bool cpu_has_f16c() {
+  unsigned eax = 0, ebx = 0, ecx = 0, edx = 0;
+  return __get_cpuid(1, &eax, &ebx, &ecx, &edx) && (ecx & bit_F16C) != 0;
+}
 void half_to_float(const uint16_t* in, float* out, std::size_t n) { dispatch().half_to_float(in, out, n); }
 void float_to_half(const float* in, uint16_t* out, std::size_t n) { dispatch().float_to_half(in, out, n); }
 

@@ -31,6 +31,7 @@ struct CombinedView {
 namespace kernels {
 
 bool has_avx2_f16c();  // what the dispatcher chose (for logs and benchmarks)
+bool cpu_has_f16c();   // the CPU converts fp16 in hardware (CPUID; compilers differ in what they detect)
 
 void half_to_float(const uint16_t* in, float* out, std::size_t n);
 void float_to_half(const float* in, uint16_t* out, std::size_t n);

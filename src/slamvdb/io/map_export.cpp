@@ -4,6 +4,7 @@
 
 #include "slamvdb/io/atomic_file.hpp"
 #include "slamvdb/io/map_pictures.hpp"
+#include "slamvdb/io/npy.hpp"
 
 #include <fmt/format.h>
 
@@ -170,6 +171,52 @@ void write_ply(const fs::path& path, const std::vector<ColouredVoxel>& voxels, P
     if (progress) progress(end, voxels.size());
   }
   file.commit();
+}
+
+void write_pcd_voxels(const fs::path& path, const std::vector<ColouredVoxel>& voxels) {
+  const std::size_t n = voxels.size();
+  std::string bytes = fmt::format(
+      "# .PCD v0.7 - Point Cloud Data file format (slamvdb map export: occupied voxel centres, world frame)\n"
+      "VERSION 0.7\nFIELDS x y z rgb count\nSIZE 4 4 4 4 4\nTYPE F F F U I\nCOUNT 1 1 1 1 1\nWIDTH {}\n"
+      "HEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS {}\nDATA binary\n",
+      n, n);
+  const std::size_t header = bytes.size();
+  bytes.resize(header + n * 20);
+  for (std::size_t i = 0; i < n; ++i) {
+    const ColouredVoxel& v = voxels[i];
+    char* p = bytes.data() + header + i * 20;
+    const uint32_t rgb = uint32_t{v.rgb[0]} << 16 | uint32_t{v.rgb[1]} << 8 | v.rgb[2];
+    const int32_t count = static_cast<int32_t>(std::min<uint32_t>(v.count, INT32_MAX));
+    std::memcpy(p, v.position.data(), 12);
+    std::memcpy(p + 12, &rgb, 4);
+    std::memcpy(p + 16, &count, 4);
+  }
+  write_file_atomically(path, bytes);
+}
+
+std::size_t write_embeddings_npy(const fs::path& npy, const SemanticMap& map) {
+  const auto dim = static_cast<std::size_t>(map.params().semantic.dim);
+  std::vector<float> embeddings, positions, scratch(dim);
+  std::vector<int32_t> counts;
+  map.read_index([&](const GlobalIndex& index) {
+    const std::vector<std::size_t> order = index.order_by_key();
+    embeddings.resize(order.size() * dim);
+    positions.reserve(order.size() * 3);
+    counts.reserve(order.size());
+    for (std::size_t r = 0; r < order.size(); ++r) {
+      const IndexedVoxel v = index.read(order[r], scratch.data());
+      kernels::decode(v.embedding, embeddings.data() + r * dim, dim);
+      for (int k = 0; k < 3; ++k) positions.push_back(static_cast<float>(v.position_world[k]));
+      counts.push_back(static_cast<int32_t>(std::min<uint32_t>(v.count, INT32_MAX)));
+    }
+  });
+  const std::size_t n = counts.size();
+  fs::path base = npy;
+  base.replace_extension();
+  write_npy_array(npy, embeddings.data(), {n, dim});
+  write_npy_array(base.string() + ".positions.npy", positions.data(), {n, 3});
+  write_npy_array(base.string() + ".counts.npy", counts.data(), {n}, NpyDtype::kInt32);
+  return n;
 }
 
 Eigen::Vector2i BirdsEyeImage::pixel_of(double x, double y) const {

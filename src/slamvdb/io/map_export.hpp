@@ -52,6 +52,15 @@ enum class PlyEncoding { kBinaryLittleEndian, kAscii };
 void write_ply(const std::filesystem::path& path, const std::vector<ColouredVoxel>& voxels, PlyEncoding encoding,
                const ExportProgress& progress = {});
 
+// The same voxels as a PCL point cloud: binary PCD v0.7, FIELDS x y z rgb count (rgb packed as
+// PCL does, 0x00RRGGBB in a U4; count I4), written atomically.
+void write_pcd_voxels(const std::filesystem::path& path, const std::vector<ColouredVoxel>& voxels);
+
+// The semantic voxels of the global index for other tools: PREFIX.npy (N x dim float32
+// embeddings, decoded), PREFIX.positions.npy (N x 3 float32 world cell centres),
+// PREFIX.counts.npy (N int32), rows in key order. Returns N.
+std::size_t write_embeddings_npy(const std::filesystem::path& npy, const SemanticMap& map);
+
 struct BirdsEyeParams {
   double resolution = 0.0;    // metres per pixel; 0: the voxel size, coarser if needed for max_auto_pixels
   int max_auto_pixels = 2000;  // longest side when the resolution is automatic

@@ -55,6 +55,13 @@ Rgb score_colour(float t) {
 }
 
 void annotate(BirdsEyeImage& image, const PictureAnnotations& a) {
+  // A small map is enlarged (whole pixels, the resolution follows) so that the annotations do
+  // not cover it and text stays readable.
+  if (const int longest = std::max(image.rgb.cols, image.rgb.rows); longest > 0 && longest < 600) {
+    const int k = std::min(8, (600 + longest - 1) / longest);
+    cv::resize(image.rgb, image.rgb, cv::Size(), k, k, cv::INTER_NEAREST);
+    image.resolution /= k;
+  }
   cv::Mat& m = image.rgb;  // RGB order: cv::Scalar(r, g, b)
   const double scale = std::clamp(m.cols / 900.0, 0.35, 0.8);  // font scale for the picture's size
   const int line = static_cast<int>(std::lround(26 * scale / 0.6)), pad = 6;

@@ -28,7 +28,8 @@ struct PictureAnnotations {
   bool scale_bar = true, north_arrow = true;
 };
 
-// Draws the annotations onto the picture (the map stays where it is: pixel_of() keeps holding).
+// Draws the annotations onto the picture. A picture under 600 pixels is first enlarged by a whole
+// factor (its resolution follows, so pixel_of() and the YAML keep holding).
 void annotate(BirdsEyeImage& image, const PictureAnnotations& annotations);
 
 // PNG written atomically (encoded in memory first), and `<png stem>.yaml` beside it in the

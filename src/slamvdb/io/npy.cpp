@@ -241,9 +241,15 @@ void read_feature_npy(const std::filesystem::path& path, FeatureMap& map) {
 }
 
 void write_npy_array(const std::filesystem::path& path, const float* data, const std::vector<std::size_t>& shape) {
+  write_npy_array(path, data, shape, NpyDtype::kFloat32);
+}
+
+void write_npy_array(const std::filesystem::path& path, const void* data, const std::vector<std::size_t>& shape,
+                     NpyDtype dtype) {
   std::string dims = fmt::format("{}", fmt::join(shape, ", "));
   if (shape.size() == 1) dims += ',';  // Python's one-element tuple
-  std::string header = fmt::format("{{'descr': '<f4', 'fortran_order': False, 'shape': ({}), }}", dims);
+  std::string header = fmt::format("{{'descr': '{}', 'fortran_order': False, 'shape': ({}), }}",
+                                   dtype == NpyDtype::kFloat32 ? "<f4" : "<i4", dims);
   // The format pads the header with spaces and a newline so the data starts 64-byte aligned.
   const std::size_t unpadded = kMagicSize + 4 + header.size() + 1;
   header.append((64 - unpadded % 64) % 64, ' ');
@@ -256,7 +262,7 @@ void write_npy_array(const std::filesystem::path& path, const float* data, const
   out.write(version_and_len, 4);
   out.write(header);
   const std::size_t count = std::accumulate(shape.begin(), shape.end(), std::size_t{1}, std::multiplies<>());
-  out.write(data, count * sizeof(float));
+  out.write(data, count * 4);  // both dtypes are 4 bytes
   out.commit();
 }
 

@@ -30,5 +30,8 @@ std::vector<std::vector<float>> read_npy_vectors(const std::filesystem::path& pa
 
 // Writes a C-ordered float32 array of the given shape (format version 1.0).
 void write_npy_array(const std::filesystem::path& path, const float* data, const std::vector<std::size_t>& shape);
+enum class NpyDtype { kFloat32, kInt32 };
+void write_npy_array(const std::filesystem::path& path, const void* data, const std::vector<std::size_t>& shape,
+                     NpyDtype dtype);
 
 }  // namespace slamvdb

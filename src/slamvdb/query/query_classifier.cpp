@@ -183,10 +183,7 @@ SLAMVDB_AVX2_F16C void dots_view_avx2(const EmbeddingView& v, const QueryMatrix&
   }
 }
 
-bool cpu_has_f16c() {
-  __builtin_cpu_init();
-  return __builtin_cpu_supports("f16c");
-}
+bool cpu_has_f16c() { return kernels::cpu_has_f16c(); }
 
 bool cpu_has_avx2_fma() {
   __builtin_cpu_init();

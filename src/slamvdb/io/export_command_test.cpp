@@ -1,0 +1,154 @@
+// `slamvdb export` and `slamvdb classify` outputs as other tools read them: the format follows the
+// extension (an unknown one is a usage error before any work), exports are byte-identical across
+// runs, the PCD reads back, the PNG + YAML place a voxel at its world position, the CSV has one
+// row per semantic cell, the navigation grid is written as PGM + YAML + PNG.
+#include <gtest/gtest.h>
+#include <yaml-cpp/yaml.h>
+
+#include <fstream>
+#include <opencv2/imgcodecs.hpp>
+
+#include "slamvdb/io/pcd.hpp"
+#include "slamvdb/query/query_set.hpp"
+#include "slamvdb/store/map_store.hpp"
+#include "slamvdb/testing/run_command.hpp"
+#include "slamvdb/testing/temp_dir.hpp"
+
+namespace slamvdb {
+namespace {
+
+namespace fs = std::filesystem;
+using testing::run_command;
+using testing::shell_quote;
+
+// Ground (z = 0, 8 x 8 m) seen by one scan from (0, 0, 1.5); semantics on the ground: class 0
+// ("smooth") where x < 0, class 1 ("rough") where x >= 0, as embeddings e0 / e1.
+struct Fixture {
+  testing::TempDir tmp;
+  fs::path map = tmp.path / "m.svdb", queries = tmp.path / "q.json";
+  std::size_t semantic_cells = 0;
+  Fixture() {
+    MapParams params;
+    params.semantic.dim = 4;
+    params.submap_length = 0;
+    SemanticMap m(params, MapInfo{"test-space", "rellis3d", "test"});
+    std::vector<Vec3f> points;
+    for (float x = -4; x <= 4; x += 0.1f)
+      for (float y = -4; y <= 4; y += 0.1f) points.emplace_back(x, y, -1.49f);
+    Pose T = Pose::Identity();
+    T.translation() = Vec3d(0, 0, 1.5);
+    m.integrate_scan(0.0, points, T);
+    m.update_active(0.0, [](VoxelMap& v, const Pose& T_world_submap, std::span<const PlacedVoxelMap>) {
+      v.occupancy().for_each_occupied([&](const VoxelKey& k, float) {
+        const double x = (T_world_submap * center_of_key(k, 0.25)).x();
+        const float e[4] = {x < 0 ? 1.f : 0.f, x < 0 ? 0.f : 1.f, 0, 0};
+        v.semantics().integrate(k, e);
+      });
+    });
+    m.finish_active_submap();
+    save_map(map, m);
+    semantic_cells = m.num_index_cells();
+    QuerySet q;
+    q.model_id = "test-space";
+    q.names = {"smooth", "rough"};
+    q.vectors = QueryMatrix::Zero(2, 4);
+    q.vectors(0, 0) = q.vectors(1, 1) = 1;
+    save_query_set(queries, q);
+  }
+  std::string cli(const std::string& args) const {
+    return shell_quote(SLAMVDB_CLI_PATH) + " " + args + " 2>&1";
+  }
+  std::string out(const std::string& name) const { return shell_quote((tmp.path / name).string()); }
+};
+
+std::string read_all(const fs::path& p) {
+  std::ifstream in(p, std::ios::binary);
+  return {std::istreambuf_iterator<char>(in), {}};
+}
+
+TEST(ExportCommand, FormatsByExtensionDeterministicAndReadable) {
+  Fixture f;
+  const std::string map = shell_quote(f.map.string());
+  const auto r = run_command(f.cli("export " + map + " -o " + f.out("a.ply") + " -o " + f.out("a.pcd") + " -o " +
+                                   f.out("a.png") + " -o " + f.out("a.csv") + " -o " + f.out("a.npy") +
+                                   " --queries " + shell_quote(f.queries.string())));
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  // Twice the same bytes.
+  ASSERT_EQ(run_command(f.cli("export " + map + " -o " + f.out("b.ply") + " -o " + f.out("b.pcd") + " --queries " +
+                              shell_quote(f.queries.string())))
+                .exit_code,
+            0);
+  EXPECT_EQ(read_all(f.tmp.path / "a.ply"), read_all(f.tmp.path / "b.ply"));
+  EXPECT_EQ(read_all(f.tmp.path / "a.pcd"), read_all(f.tmp.path / "b.pcd"));
+  EXPECT_NE(read_all(f.tmp.path / "a.ply").find("property int count"), std::string::npos);
+  // The PCD reads back (our reader; PCL's layout).
+  const PcdCloud cloud = read_pcd(f.tmp.path / "a.pcd");
+  EXPECT_GT(cloud.points.size(), 900u);
+  // CSV: one row per semantic cell, the documented header, classes by side.
+  std::ifstream csv(f.tmp.path / "a.csv");
+  std::string line;
+  std::getline(csv, line);
+  EXPECT_EQ(line, "x,y,z,class,score,margin,count");
+  std::size_t rows = 0, correct = 0;
+  while (std::getline(csv, line)) {
+    ++rows;
+    const double x = std::stod(line.substr(0, line.find(',')));
+    correct += line.find(x < 0 ? ",smooth," : ",rough,") != std::string::npos;
+  }
+  EXPECT_EQ(rows, f.semantic_cells);
+  EXPECT_EQ(correct, rows);
+  // PNG + YAML: the map_server origin and resolution place world points on their pixels.
+  const YAML::Node yaml = YAML::LoadFile((f.tmp.path / "a.yaml").string());
+  const cv::Mat png = cv::imread((f.tmp.path / "a.png").string());
+  const double res = yaml["resolution"].as<double>(), ox = yaml["origin"][0].as<double>(),
+               oy = yaml["origin"][1].as<double>();
+  const auto bgr_at = [&](double x, double y) {
+    return png.at<cv::Vec3b>(png.rows - 1 - static_cast<int>((y - oy) / res), static_cast<int>((x - ox) / res));
+  };
+  EXPECT_NE(bgr_at(-1.0, -2.0), bgr_at(1.0, -2.0));  // the two classes' colours, at their world positions
+  EXPECT_EQ(bgr_at(-1.0, -2.0), bgr_at(-1.6, -2.2));
+  EXPECT_EQ(bgr_at(1.0, -2.0), bgr_at(2.2, -1.7));
+  EXPECT_GE(png.cols, 8 * 32);  // a small map (32 px) is enlarged for its legend
+  EXPECT_TRUE(fs::exists(f.tmp.path / "a.positions.npy"));
+  EXPECT_TRUE(fs::exists(f.tmp.path / "a.counts.npy"));
+}
+
+TEST(ExportCommand, UnknownFormatsAreUsageErrorsBeforeWork) {
+  Fixture f;
+  const std::string map = shell_quote(f.map.string());
+  EXPECT_EQ(run_command(f.cli("export " + map + " -o " + f.out("x.pgm"))).exit_code, 2);
+  EXPECT_EQ(run_command(f.cli("export " + map + " --ply " + f.out("x.pcd"))).exit_code, 2);
+  EXPECT_EQ(run_command(f.cli("export " + map)).exit_code, 2);
+  EXPECT_EQ(run_command(f.cli("export " + map + " -o /no/such/dir/x.ply")).exit_code, 2);
+  EXPECT_EQ(run_command(f.cli("query " + map + " --text grass -o " + f.out("x.pcd"))).exit_code, 2);
+  EXPECT_EQ(run_command(f.cli("export " + map + " -o " + f.out("x.bin") + " --format ply")).exit_code, 0);
+  EXPECT_FALSE(fs::exists(f.tmp.path / "x.pgm"));
+}
+
+TEST(ExportCommand, ClassifyWritesTerrainPictureAndNavigationGrid) {
+  Fixture f;
+  const auto r = run_command(f.cli("classify " + shell_quote(f.map.string()) + " --queries " +
+                                   shell_quote(f.queries.string()) + " --png " + f.out("t.png") + " --grid " +
+                                   f.out("nav") + " --cost rough=40"));
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const YAML::Node yaml = YAML::LoadFile((f.tmp.path / "nav.yaml").string());
+  EXPECT_EQ(yaml["mode"].as<std::string>(), "raw");
+  const cv::Mat pgm = cv::imread((f.tmp.path / "nav.pgm").string(), cv::IMREAD_UNCHANGED);
+  const double res = yaml["resolution"].as<double>(), ox = yaml["origin"][0].as<double>(),
+               oy = yaml["origin"][1].as<double>();
+  const auto cost_at = [&](double x, double y) {
+    return int{pgm.at<uint8_t>(pgm.rows - 1 - static_cast<int>((y - oy) / res), static_cast<int>((x - ox) / res))};
+  };
+  EXPECT_EQ(cost_at(-1.0, 1.0), 0);   // smooth
+  EXPECT_EQ(cost_at(1.0, 1.0), 40);   // rough, at the cost given
+  EXPECT_TRUE(fs::exists(f.tmp.path / "nav.png"));
+  EXPECT_TRUE(fs::exists(f.tmp.path / "t.yaml"));
+  // A class without a default cost must be given one.
+  EXPECT_EQ(run_command(f.cli("classify " + shell_quote(f.map.string()) + " --queries " +
+                              shell_quote(f.queries.string()) + " --grid " + f.out("n2") + " --cost nosuch=3"))
+                .exit_code,
+            2);
+}
+
+}  // namespace
+}  // namespace slamvdb
