@@ -142,7 +142,9 @@ void run(const Options& opt) {
     std::vector<ClassifiedCell> cells = classify_map(map, queries);
     sort_by_cell(cells);
     write_classified_csv(out / "classes.csv", cells, queries);
-    write_class_outputs(out, map, cells, queries, ontology);
+    std::vector<Eigen::Vector2d> path;
+    for (const Pose& T : seq.poses.poses()) path.push_back(T.translation().head<2>());
+    write_class_outputs(out, map, cells, queries, path);
     timings.emplace_back("classification", step.seconds());
   }
 
@@ -166,10 +168,10 @@ void run(const Options& opt) {
     fmt::print("\nTerrain segmentation accuracy of the map (paper Table 6.1 form, void ignored), {} scans:\n\n{}\n"
                "Per-image baseline, {} images:\n\n{}",
                e.scans, to_markdown(e.report), b.images, to_markdown(br));
-    std::ofstream(out / "eval.md") << to_markdown(e.report) << "\nPer-image baseline:\n\n" << to_markdown(br);
+    write_file_atomically(out / "eval.md", to_markdown(e.report) + "\nPer-image baseline:\n\n" + to_markdown(br));
     nlohmann::json json = nlohmann::json::parse(to_json(e.report));
     json["baseline"] = nlohmann::json::parse(to_json(br));
-    std::ofstream(out / "eval.json") << json.dump(2) << "\n";
+    write_file_atomically(out / "eval.json", json.dump(2) + "\n");
     write_confusion_png(out / "confusion.png", e.voxels, fmt::format("voxel-wise labelling, {} voxels", e.voxels.scored()));
     timings.emplace_back("evaluation", step.seconds());
   }
@@ -186,8 +188,13 @@ void run(const Options& opt) {
   for (std::size_t i = 0; i < timings.size(); ++i)
     fmt::print("{}{} {:.1f} s", i ? ", " : "", timings[i].first, timings[i].second);
   fmt::print(")\n");
+  std::vector<fs::path> files;
   for (const auto& entry : fs::directory_iterator(out))
-    if (entry.is_regular_file()) fmt::print("  {}\n", entry.path().string());
+    if (entry.is_regular_file()) files.push_back(entry.path());
+  std::sort(files.begin(), files.end());
+  fmt::print("outputs (classes.png: terrain from above; nav.*: navigation grid for Nav2; query_grass.png: heat map; "
+             "map.html: 3D view; eval.md: the paper's table):\n");
+  for (const fs::path& f : files) fmt::print("  {}\n", f.string());
 }
 
 void add(CLI::App& root) {
@@ -197,7 +204,7 @@ void add(CLI::App& root) {
       "The main job on built-in defaults, on a SIMULATED drive: generate (or reuse) the sequence, map it, train query "
       "vectors on the first half, classify the map, evaluate it on the second half (paper Table 6.1) beside the "
       "per-image baseline, and write the pictures (class map, navigation grid, confusion matrix, a query heat map)");
-  cmd->add_option("out", opt->out, "Output folder")->capture_default_str();
+  cmd->add_option("out,-o,--output", opt->out, "Output folder")->capture_default_str();
   cmd->add_option("--length", opt->length, "Length of the simulated drive (m)")->capture_default_str()->check(CLI::Range(20.0, 10000.0));
   cmd->add_option("--seed", opt->seed, "Seed of the simulated drive")->capture_default_str();
   cmd->add_flag("--fresh", opt->fresh, "Generate the sequence again even if the output folder has one");

@@ -9,7 +9,11 @@
 #include "slamvdb/core/error.hpp"
 #include "slamvdb/inference/simulated_encoders.hpp"
 #include "slamvdb/io/map_export.hpp"
+#include "slamvdb/io/atomic_file.hpp"
+#include "slamvdb/io/html_viewer.hpp"
 #include "slamvdb/io/map_pictures.hpp"
+#include "slamvdb/io/nav_grid_files.hpp"
+#include "slamvdb/query/nav_grid.hpp"
 #include "slamvdb/map/keys.hpp"
 
 #include <absl/container/flat_hash_map.h>
@@ -22,15 +26,14 @@ namespace slamvdb::cli {
 // x,y,z,class,score,margin,count. `cells` in the order to write (sort_by_cell for a stable file).
 inline void write_classified_csv(const std::filesystem::path& path, const std::vector<ClassifiedCell>& cells,
                                  const QuerySet& queries) {
-  std::ofstream out(path, std::ios::binary);
-  out << "x,y,z,class,score,margin,count\n";
+  std::string csv = "x,y,z,class,score,margin,count\n";
   for (const ClassifiedCell& c : cells) {
     const Vec3d& p = c.position_world;
     const std::string name = c.match.class_index == kNoClass ? "" : queries.names[c.match.class_index];
-    out << fmt::format("{:.3f},{:.3f},{:.3f},{},{:.6f},{:.6f},{}\n", p.x(), p.y(), p.z(), name, c.match.score,
+    csv += fmt::format("{:.3f},{:.3f},{:.3f},{},{:.6f},{:.6f},{}\n", p.x(), p.y(), p.z(), name, c.match.score,
                        c.match.margin, c.count);
   }
-  if (!out.flush()) throw Error(fmt::format("cannot write {}", path.string()));
+  write_file_atomically(path, csv);
 }
 
 // The map's occupied voxels in the world, semantic ones coloured by `colour_of(index into cells)`
@@ -115,12 +118,31 @@ inline BirdsEyeImage write_score_picture(const std::filesystem::path& png, const
   return image;
 }
 
-// classes.png: the terrain class map (`cells` sorted by cell).
+// classes.png (+ .yaml): the terrain class map; nav.pgm / nav.yaml / nav.png: the navigation grid
+// with the terrain costs; map.html: the map in 3D by class. `cells` sorted by cell, `path` the
+// driven trajectory (world x, y).
 inline void write_class_outputs(const std::filesystem::path& out, const SemanticMap& map,
-                                const std::vector<ClassifiedCell>& cells, const QuerySet& queries, const Ontology&) {
-  std::vector<Eigen::Vector2d> path;
-  for (const SubmapInfo& s : map.submaps()) path.push_back(s.T_world_submap.translation().head<2>());
+                                const std::vector<ClassifiedCell>& cells, const QuerySet& queries,
+                                const std::vector<Eigen::Vector2d>& path) {
   write_class_picture(out / "classes.png", map, cells, queries, path);
+  NavGridOptions options;
+  for (const std::string& name : queries.names) options.class_cost.push_back(default_terrain_cost(name).value_or(50));
+  const std::vector<Rgb> colours = class_colours(queries);
+  write_nav_grid(out / "nav", build_nav_grid(map, cells, options), queries.names, colours, path);
+  if (html_viewer_available()) {
+    HtmlViewerScene scene;
+    scene.title = "slamvdb demo: terrain classes (SIMULATED sequence and features)";
+    scene.voxel_size = map.params().occupancy.voxel_size;
+    for (const ColouredVoxel& v : coloured_map(map, cells, [&](std::size_t j) {
+           const int k = cells[j].match.class_index;
+           return k == kNoClass ? Rgb{255, 255, 255} : colours[static_cast<std::size_t>(k)];
+         })) {
+      scene.positions.push_back(v.position.cast<double>());
+      scene.colours.push_back(v.rgb);
+    }
+    for (int k = 0; k < queries.size(); ++k) scene.legend.push_back({queries.names[k], colours[k]});
+    write_html_viewer(out / "map.html", scene);
+  }
 }
 
 // query_<text>.png: the similarity of every voxel to a text query, seen from above.
