@@ -73,7 +73,8 @@ inline std::vector<Rgb> class_colours(const QuerySet& queries) {
 // scale bar, north arrow and the driven path; PNG + map_server YAML. `cells` sorted by cell.
 inline BirdsEyeImage write_class_picture(const std::filesystem::path& png, const SemanticMap& map,
                                          const std::vector<ClassifiedCell>& cells, const QuerySet& queries,
-                                         const std::vector<Eigen::Vector2d>& path) {
+                                         const std::vector<Eigen::Vector2d>& path,
+                                         const std::string& path_label = "path (submap anchors)") {
   const std::vector<Rgb> colours = class_colours(queries);
   const auto voxels = coloured_map(map, cells, [&](std::size_t j) {
     const int k = cells[j].match.class_index;
@@ -86,7 +87,7 @@ inline BirdsEyeImage write_class_picture(const std::filesystem::path& png, const
   notes.title = "terrain classes (ground of each column)";
   for (int k = 0; k < queries.size(); ++k) notes.legend.emplace_back(queries.names[k], colours[k]);
   notes.legend.emplace_back("no semantics (dark grey by height)", Rgb{90, 90, 90});
-  if (path.size() >= 2) notes.legend.emplace_back("path (submap anchors)", Rgb{255, 60, 60});
+  if (path.size() >= 2) notes.legend.emplace_back(path_label, Rgb{255, 60, 60});
   notes.trajectory = path;
   annotate(image, notes);
   write_png_with_yaml(png, image);
@@ -124,7 +125,7 @@ inline BirdsEyeImage write_score_picture(const std::filesystem::path& png, const
 inline void write_class_outputs(const std::filesystem::path& out, const SemanticMap& map,
                                 const std::vector<ClassifiedCell>& cells, const QuerySet& queries,
                                 const std::vector<Eigen::Vector2d>& path) {
-  write_class_picture(out / "classes.png", map, cells, queries, path);
+  write_class_picture(out / "classes.png", map, cells, queries, path, "path driven");
   NavGridOptions options;
   for (const std::string& name : queries.names) options.class_cost.push_back(default_terrain_cost(name).value_or(50));
   const std::vector<Rgb> colours = class_colours(queries);
