@@ -23,6 +23,7 @@
 #include "slamvdb/pipeline/mapping_pipeline.hpp"
 #include "slamvdb/store/map_store.hpp"
 #include "slamvdb/synth/sequence_writer.hpp"
+#if SLAMVDB_WITH_TRAINING  // the demo trains query vectors (libtorch); without it there is no demo command
 #include "slamvdb/training/train_queries.hpp"
 
 namespace slamvdb::cli {
@@ -215,3 +216,4 @@ const RegisterCommand reg{add};
 
 }  // namespace
 }  // namespace slamvdb::cli
+#endif  // SLAMVDB_WITH_TRAINING

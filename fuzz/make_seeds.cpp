@@ -12,6 +12,9 @@
 #include <vector>
 
 #include "slamvdb/io/npy.hpp"
+#include "slamvdb/io/pcd.hpp"
+#include "slamvdb/query/query_set.hpp"
+#include "slamvdb/store/map_store.hpp"
 
 namespace fs = std::filesystem;
 
@@ -104,6 +107,52 @@ int main(int argc, char** argv) {
        R"({"manifest_version": 1, "kind": "text", "model_id": "clip-text-test",
   "text": {"context_length": 77, "vocab": "bpe_simple_vocab_16e6.txt.gz"},
   "output": {"dim": 8, "l2_normalized": true, "normalize_output": false}})");
+  seed("poses_tum", "tum", "# stamp tx ty tz qx qy qz qw\n0.0 1 2 3 0 0 0 1\n0.1 1.5 2 3 0 0 0.7071068 0.7071068\n");
+  seed("poses_tum", "kitti", "1 0 0 0 0 1 0 0 0 0 1 0\n");
+  seed("ontology", "coarse", file_bytes(fs::path(SLAMVDB_SOURCE_DIR) / "data/ontology/rellis3d_coarse.yaml"));
+  seed("ontology", "fine", file_bytes(fs::path(SLAMVDB_SOURCE_DIR) / "data/ontology/rellis3d_fine.yaml"));
+
+  // PCD: the project's writer in all three encodings.
+  slamvdb::PcdCloud cloud;
+  cloud.points = {{1, 2, 3}, {-4, 5, 0.5f}, {0.1f, 0.1f, 0.1f}};
+  cloud.intensity = {0.1f, 0.2f, 0.3f};
+  cloud.time = {0, 0.05f, 0.1f};
+  for (const auto& [encoding, name] : {std::pair{slamvdb::PcdEncoding::kAscii, "ascii"},
+                                       std::pair{slamvdb::PcdEncoding::kBinary, "binary"},
+                                       std::pair{slamvdb::PcdEncoding::kBinaryCompressed, "compressed"}}) {
+    slamvdb::write_pcd(out_dir / "seed.pcd.tmp", cloud, encoding);
+    seed("pcd", name, file_bytes(out_dir / "seed.pcd.tmp"));
+  }
+  fs::remove(out_dir / "seed.pcd.tmp");
+
+  // Query set and map file: small valid ones through the project's writers.
+  slamvdb::QuerySet q;
+  q.model_id = "fuzz-space";
+  q.names = {"smooth", "rough"};
+  q.vectors = slamvdb::QueryMatrix::Zero(2, 4);
+  q.vectors(0, 0) = q.vectors(1, 1) = 1;
+  q.colours = {{1, 2, 3}, {4, 5, 6}};
+  slamvdb::save_query_set(out_dir / "seed.json.tmp", q);
+  seed("query_set", "two", file_bytes(out_dir / "seed.json.tmp"));
+  fs::remove(out_dir / "seed.json.tmp");
+  slamvdb::MapParams params;
+  params.semantic.dim = 4;
+  params.submap_length = 2.0;
+  slamvdb::SemanticMap map(params, slamvdb::MapInfo{"fuzz-space", "rellis3d", "seed"});
+  for (int i = 0; i < 3; ++i) {  // three short scans: two submaps
+    slamvdb::Pose T = slamvdb::Pose::Identity();
+    T.translation() = slamvdb::Vec3d(1.5 * i, 0, 1);
+    map.integrate_scan(i, {{2, 0, -1}, {2, 0.3f, -1}, {3, 1, 0}}, T);
+    map.update_active(i, [](slamvdb::VoxelMap& v, const slamvdb::Pose&, std::span<const slamvdb::PlacedVoxelMap>) {
+      const float e[4] = {1, 0, 0.5f, 0};
+      v.occupancy().for_each_occupied([&](const slamvdb::VoxelKey& k, float) { v.semantics().integrate(k, e); });
+    });
+  }
+  map.finish_active_submap();
+  slamvdb::save_map(out_dir / "seed.svdb.tmp", map);
+  seed("map_file", "v2", file_bytes(out_dir / "seed.svdb.tmp"));
+  fs::remove(out_dir / "seed.svdb.tmp");
+
   seed("file_names", "rellis", "frame000104-1581624663_149");
   seed("file_names", "escape", "model\x1b[2J\xc2\x9b\xe2\x80\xae\xff");
   std::printf("seeds written to %s\n", out_dir.c_str());
