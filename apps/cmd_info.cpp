@@ -90,6 +90,7 @@ nlohmann::json to_json(const std::string& path, const MapFileSummary& s, const s
           {"model_id", s.info.model_id},
           {"ontology", s.info.ontology},
           {"source", s.info.source},
+          {"config", s.info.config},
           {"submap_length", s.params.submap_length},
           {"submaps", submaps}};
   if (world)
@@ -112,6 +113,17 @@ void print_text(const std::string& path, const MapFileSummary& s, const std::opt
   fmt::print("model      {}\n", s.info.model_id.empty() ? "(none)" : escape_control(s.info.model_id));
   fmt::print("ontology   {}\n", escape_control(s.info.ontology));
   fmt::print("source     {}\n", s.info.source.empty() ? "(not recorded)" : escape_control(s.info.source));
+  if (!s.info.config.empty()) {
+    fmt::print("made with  ");
+    bool first = true;
+    std::size_t start = 0;
+    while (start < s.info.config.size()) {  // the recorded options, one per line
+      const std::size_t end = std::min(s.info.config.find('\n', start), s.info.config.size());
+      fmt::print("{}{}\n", first ? "" : "           ", escape_control(s.info.config.substr(start, end - start)));
+      first = false;
+      start = end + 1;
+    }
+  }
   fmt::print("bytes      file {}, in memory {} (when saved)\n", megabytes(s.file_bytes), megabytes(s.memory_bytes));
   fmt::print("           on disk: occupancy {}, semantics {}", megabytes(s.occupancy_payload_bytes),
              megabytes(s.semantic_payload_bytes));

@@ -7,6 +7,7 @@
 #include <regex>
 
 #include "command_registry.hpp"
+#include "yaml_config.hpp"
 #include "map_option_checks.hpp"
 #include "option_checks.hpp"
 #include "progress.hpp"
@@ -83,7 +84,7 @@ std::unique_ptr<FeatureSource> make_feature_source(const Options& opt, const Seq
   throw Error(fmt::format("--features '{}': expected simulated, model, precomputed or none", opt.features));
 }
 
-void run(Options opt) {
+void run(Options opt, const std::string& config) {
   opt.pipeline.fusion.occlusion_from_other_submaps = opt.occlusion == "all";
   opt.pipeline.map.validate();
   ReadOptions read_options;
@@ -105,6 +106,9 @@ void run(Options opt) {
   });
   if (bar) bar->finish();
   fmt::print("{}\n", escape_control_keep_lines(report.summary()));
+  MapInfo info = map.info();
+  info.config = config;  // the map says how it was made
+  map.set_info(info);
   save_map(opt.output, map);
   std::size_t semantic_bytes = 0;
   for (const SubmapInfo& info : map.submaps())
@@ -190,7 +194,7 @@ void add(CLI::App& root) {
   cmd->parse_complete_callback([opt] {
     check_map_options(opt->pipeline, opt->features, opt->feature_size, opt->precision, opt->distortion, opt->output);
   });
-  cmd->callback([opt] { run(*opt); });
+  cmd->callback([opt, cmd] { run(*opt, effective_config(*cmd)); });
 }
 
 const RegisterCommand reg{add};

@@ -8,6 +8,7 @@
 #include <optional>
 
 #include "command_registry.hpp"
+#include "yaml_config.hpp"
 #include "feature_options.hpp"
 #include "option_checks.hpp"
 #include "progress.hpp"
@@ -43,7 +44,7 @@ std::optional<localization::AteResult> ate_against(const Trajectory& truth, cons
   return localization::absolute_trajectory_error(estimate, reference);
 }
 
-void run(Options opt) {
+void run(Options opt, const std::string& config) {
   const Sequence seq = read_sequence(opt.dataset);
   fmt::print("sequence {} ({} layout): {} scans, {} images\n", seq.root.string(), seq.layout, seq.scans.size(),
              seq.images.size());
@@ -97,6 +98,7 @@ void run(Options opt) {
   MapInfo info = map.info();
   info.source = "slam (own odometry" + std::string(tracked.loop_closer ? " + loop closure" : "") + "): " +
                 seq.root.string();
+  info.config = config;
   map.set_info(info);
   save_map(opt.output, map);
   if (!opt.poses_out.empty()) write_trajectory(opt.poses_out, tracked.stamps, corrected_poses, opt.format);
@@ -165,9 +167,9 @@ void add(CLI::App& root) {
       usage_error(e.what());
     }
   });
-  cmd->callback([opt] {
+  cmd->callback([opt, cmd] {
     opt->pipeline.map.semantic.dim = opt->features.dim;
-    run(*opt);
+    run(*opt, effective_config(*cmd));
   });
 }
 

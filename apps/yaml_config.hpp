@@ -1,7 +1,7 @@
 #pragma once
 // `--config FILE.yaml` for every command: the options of a command as a YAML mapping, keys being
-// the long option names (`voxel-size: 0.2`, underscores accepted for dashes), positionals by name
-// (`dataset: /data/seq`), lists as YAML sequences, flags as booleans. Options on the command line
+// the long option names (`voxel-size: 0.2`, underscores accepted for dashes), lists as YAML
+// sequences, flags as booleans; positional arguments stay on the command line. Options on the command line
 // win over the file. Unknown keys are errors (a typo must not be ignored silently).
 // CLI11 reads TOML/INI only; this is its Config interface over yaml-cpp.
 #include <yaml-cpp/yaml.h>
@@ -64,9 +64,7 @@ class YamlConfig : public CLI::Config {
   std::string section_;
 
   static std::string key_of(const CLI::Option& opt) {
-    if (!opt.get_lnames().empty()) return opt.get_lnames().front();
-    if (opt.get_positional()) return opt.get_name(true, false);
-    return {};
+    return opt.get_lnames().empty() ? std::string() : opt.get_lnames().front();
   }
 
   static void collect(const YAML::Node& map, const std::vector<std::string>& parents,

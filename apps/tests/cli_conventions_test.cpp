@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <fstream>
+#include <nlohmann/json.hpp>
 #include <string>
 
 #include "slamvdb/testing/run_command.hpp"
@@ -73,6 +74,20 @@ TEST(CliConventions, ConfigFileSetsOptionsAndTheCommandLineWins) {
   EXPECT_EQ(bad.exit_code, 2) << bad.output;
   const auto broken = run_command(kCli + " synth " + seq + " --config " + write("broken.yaml", "length: [2\n") + " 2>&1");
   EXPECT_EQ(broken.exit_code, 2) << broken.output;
+
+  // A map records the options it was made with, as a config file `map --config` reads back.
+  const std::string map = shell_quote((tmp.path / "m.svdb").string());
+  const auto mapped = run_command(kCli + " map " + seq + " -o " + map + " --config " +
+                                  write("map.yaml", "voxel-size: 0.5\nfeature-size: 24x16\ndim: 8\n") + " 2>&1");
+  ASSERT_EQ(mapped.exit_code, 0) << mapped.output;
+  const auto info = run_command(kCli + " info " + map + " --json");
+  const auto config = nlohmann::json::parse(info.output)["config"].get<std::string>();
+  EXPECT_NE(config.find("voxel-size: 0.5"), std::string::npos) << config;
+  EXPECT_NE(config.find("submap-length: 50"), std::string::npos) << config;  // defaults too
+  std::ofstream(tmp.path / "again.yaml") << config;
+  const auto again = run_command(kCli + " map " + seq + " --config " + shell_quote((tmp.path / "again.yaml").string()) +
+                                 " -o " + shell_quote((tmp.path / "m2.svdb").string()) + " 2>&1");
+  EXPECT_EQ(again.exit_code, 0) << again.output;
 }
 
 }  // namespace

@@ -32,6 +32,7 @@ struct MapInfo {
   std::string model_id;             // the encoder whose embedding space the map is in
   std::string ontology = "rellis3d";
   std::string source;               // what the map was built from (dataset path, simulated or not)
+  std::string config;               // how: the effective options of the command that made it (YAML)
 };
 
 struct MergeOptions {

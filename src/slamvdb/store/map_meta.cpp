@@ -50,6 +50,7 @@ Meta map_meta(const MapParams& params, const MapInfo& info) {
   meta["model_id"] = info.model_id;
   meta["ontology"] = info.ontology;
   meta["source"] = info.source;
+  if (!info.config.empty()) meta["config"] = info.config;
   return meta;
 }
 
@@ -80,7 +81,9 @@ MapParams parse_params(const Meta& meta) {
 }
 
 MapInfo parse_info(const Meta& meta) {
-  return {meta_value(meta, "model_id"), meta_value(meta, "ontology"), meta_value(meta, "source")};
+  const auto config = meta.find("config");  // maps before the effective configuration was recorded lack it
+  return {meta_value(meta, "model_id"), meta_value(meta, "ontology"), meta_value(meta, "source"),
+          config == meta.end() ? std::string() : config->second};
 }
 
 void write_meta(Database& db, const Meta& meta) {
