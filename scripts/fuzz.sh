@@ -2,17 +2,17 @@
 # Runs the libFuzzer harnesses of fuzz/ (one per reader) under ASan + UBSan, each for SECONDS
 # (default 20, what CI runs), starting from seed corpora written by fuzz_make_seeds.
 #   scripts/fuzz.sh                    # every harness, 20 s each (CI)
-#   scripts/fuzz.sh 3600 npy image     # long runs of some harnesses (names: build-asan/fuzz/fuzz_<name>)
+#   scripts/fuzz.sh 3600 npy image     # long runs of some harnesses (names: build-fuzz/fuzz/fuzz_<name>)
 #   FUZZ_PARALLEL=1 scripts/fuzz.sh    # one harness at a time (default: one per core)
-# The corpus of each harness grows in build-asan/fuzz/corpus/<name>/ across runs; a finding is written
-# to build-asan/fuzz/artifacts/<name>/ (crash-*, timeout-*, oom-*, leak-*) and fails the run; replay
-# it with build-asan/fuzz/fuzz_<name> FILE.
+# The corpus of each harness grows in build-fuzz/fuzz/corpus/<name>/ across runs; a finding is written
+# to build-fuzz/fuzz/artifacts/<name>/ (crash-*, timeout-*, oom-*, leak-*) and fails the run; replay
+# it with build-fuzz/fuzz/fuzz_<name> FILE.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 seconds=${1:-20}
 [ $# -gt 0 ] && shift
-scripts/build_asan.sh fuzzers > /dev/null
-out=build-asan/fuzz
+FUZZ=1 scripts/build_asan.sh > /dev/null
+out=build-fuzz/fuzz
 "$out/fuzz_make_seeds" "$out/seeds" > /dev/null
 harnesses=("$@")
 if [ ${#harnesses[@]} -eq 0 ]; then
@@ -25,7 +25,7 @@ export ASAN_OPTIONS=${ASAN_OPTIONS:-detect_leaks=1:abort_on_error=1:symbolize=1}
 export UBSAN_OPTIONS=${UBSAN_OPTIONS:-halt_on_error=1:print_stacktrace=1}
 
 run_one() {
-  local name=$1 seconds=$2 out=build-asan/fuzz
+  local name=$1 seconds=$2 out=build-fuzz/fuzz
   mkdir -p "$out/corpus/$name" "$out/artifacts/$name" "$out/seeds/$name"
   # -timeout: an input taking 10 s is a hang; -rss_limit_mb: 2 GB is an out-of-memory finding.
   if "$out/fuzz_$name" -max_total_time="$seconds" -timeout=10 -rss_limit_mb=2048 -print_final_stats=1 \

@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Installs + builds (Release), then runs every test (unit, integration, CLI) with CTest; then the
-# same tests under ASan + UBSan (clang, build-asan/), the map's concurrency tests under
-# ThreadSanitizer (build-tsan/), then every fuzz harness for 20 s (sharing build-asan/).
+# same tests under ASan + UBSan (GCC, build-asan/), the map's concurrency tests under
+# ThreadSanitizer (clang, build-tsan/), then every fuzz harness for 20 s (clang, build-fuzz/).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 scripts/setup.sh
