@@ -9,6 +9,7 @@
 
 #include "command_registry.hpp"
 #include "feature_options.hpp"
+#include "option_checks.hpp"
 #include "slamvdb/inference/simulated_encoders.hpp"
 #include "demo_outputs.hpp"
 #include "slamvdb/io/atomic_file.hpp"
@@ -23,7 +24,7 @@ namespace slamvdb::cli {
 namespace {
 
 struct Options {
-  std::string map, queries, output, at_csv, text_model, image_model;
+  std::string map, queries, output, at_csv, text_model, image_model, ply, png;
   std::vector<std::string> text, not_text, classes, not_classes, images, at, vectors, not_vectors;
   std::size_t top_k = 100;
   float threshold = -std::numeric_limits<float>::infinity();
@@ -182,6 +183,9 @@ void run_points(const Options& opt, const SemanticMap& map) {
   }
 }
 
+void write_results(const std::string& format, const std::string& output, const Options& opt, const SemanticMap& map,
+                   const std::vector<ScoredCell>& results, float lo, float hi);
+
 void run(const Options& opt) {
   const bool spatial = !opt.at.empty() || !opt.at_csv.empty();
   const bool similarity = !opt.text.empty() || !opt.classes.empty() || !opt.images.empty() || !opt.vectors.empty();
@@ -189,7 +193,7 @@ void run(const Options& opt) {
     throw CLI::ValidationError("query",
                                "give either a query (--text, --class, --image, --vector) or points (--at, --at-csv)");
   const std::string format = output_format(opt.output);
-  if (spatial && !format.empty() && format != ".csv")
+  if (spatial && ((!format.empty() && format != ".csv") || !opt.ply.empty() || !opt.png.empty()))
     throw CLI::ValidationError("--output", "point look-ups are written as .csv");
   if ((!opt.classes.empty() || !opt.not_classes.empty()) && opt.queries.empty())
     throw CLI::ValidationError("--class", "needs --queries QUERIES.json");
@@ -211,33 +215,39 @@ void run(const Options& opt) {
   for (std::size_t i = 0; i < results.size() && i < 10; ++i)
     fmt::print("| {} | {:.2f} | {:.2f} | {:.2f} | {:.4f} | {} |\n", i + 1, results[i].position_world.x(),
                results[i].position_world.y(), results[i].position_world.z(), results[i].score, results[i].count);
-  if (opt.output.empty()) return;
-  const std::string label = fmt::format("cosine similarity to the query ({} voxels)", results.size());
   float lo = 1, hi = -1;
   for (const ScoredCell& r : results) lo = std::min(lo, r.score), hi = std::max(hi, r.score);
+  std::vector<std::string> outputs;
+  for (const std::string& o : {opt.output, opt.ply, opt.png})
+    if (!o.empty()) outputs.push_back(o);
+  for (const std::string& output : outputs) write_results(output_format(output), output, opt, map, results, lo, hi);
+}
+
+void write_results(const std::string& format, const std::string& output, const Options& opt, const SemanticMap& map,
+                   const std::vector<ScoredCell>& results, float lo, float hi) {
   if (format == ".csv") {
     std::string csv = "rank,x,y,z,score,count\n";
     for (std::size_t i = 0; i < results.size(); ++i)
       csv += fmt::format("{},{:.3f},{:.3f},{:.3f},{:.6f},{}\n", i + 1, results[i].position_world.x(),
                          results[i].position_world.y(), results[i].position_world.z(), results[i].score,
                          results[i].count);
-    write_file_atomically(opt.output, csv);
-    fmt::print("CSV  {}: {} rows\n", opt.output, results.size());
+    write_file_atomically(output, csv);
+    fmt::print("CSV  {}: {} rows\n", output, results.size());
   } else if (format == ".png") {
     std::vector<ClassifiedCell> cells;
     for (const ScoredCell& c : results) cells.push_back({c.cell, c.position_world, c.count, {0, c.score, 0}});
     sort_by_cell(cells);
-    const BirdsEyeImage image = write_score_picture(opt.output, map, cells, "cosine similarity", lo, hi);
+    const BirdsEyeImage image = write_score_picture(output, map, cells, "cosine similarity", lo, hi);
     fmt::print("PNG  {} (+ .yaml): heat map of the {} results from above, {}x{} px, colour bar {:.3f}..{:.3f}\n",
-               opt.output, results.size(), image.rgb.cols, image.rgb.rows, lo, hi);
+               output, results.size(), image.rgb.cols, image.rgb.rows, lo, hi);
   } else {
     // Results coloured by score on the viridis ramp, in rank order.
     std::vector<ColouredVoxel> voxels;
     for (const ScoredCell& r : results)
       voxels.push_back({r.position_world.cast<float>(), score_colour(hi > lo ? (r.score - lo) / (hi - lo) : 1.f), r.count});
     if (format == ".ply") {
-      write_ply(opt.output, voxels, PlyEncoding::kBinaryLittleEndian);
-      fmt::print("PLY  {}: {} voxels coloured by score ({:.3f}..{:.3f}, viridis)\n", opt.output, voxels.size(), lo, hi);
+      write_ply(output, voxels, PlyEncoding::kBinaryLittleEndian);
+      fmt::print("PLY  {}: {} voxels coloured by score ({:.3f}..{:.3f}, viridis)\n", output, voxels.size(), lo, hi);
     } else {
       HtmlViewerScene scene;
       scene.title = fmt::format("slamvdb query on {}", opt.map);
@@ -246,8 +256,8 @@ void run(const Options& opt) {
       std::vector<Rgb8> stops;
       for (int i = 0; i <= 8; ++i) stops.push_back(score_colour(i / 8.0f));
       scene.colour_bar = HtmlViewerScene::ColourBar{"cosine similarity", lo, hi, stops};
-      write_html_viewer(opt.output, scene);
-      fmt::print("HTML {}: {} voxels coloured by score, open it in a browser\n", opt.output, voxels.size());
+      write_html_viewer(output, scene);
+      fmt::print("HTML {}: {} voxels coloured by score, open it in a browser\n", output, voxels.size());
     }
   }
 }
@@ -294,7 +304,15 @@ void add(CLI::App& root) {
   cmd->add_flag("--no-void-rule", opt->no_void_rule, "With --queries and --at: let void classes win");
   cmd->add_flag("--ignore-model-id", opt->ignore_model_id,
                 "Accept an encoder or queries whose model id differs from the map's (the dimension is still checked)");
-  cmd->parse_complete_callback([opt] { output_format(opt->output); });
+  cmd->add_option("--ply", opt->ply, "Also write the results as a PLY coloured by score");
+  cmd->add_option("--png", opt->png, "Also write the heat map from above (PNG + map_server YAML)");
+  cmd->parse_complete_callback([opt] {
+    output_format(opt->output);
+    if (!opt->ply.empty() && output_format(opt->ply) != ".ply") usage_error("--ply " + opt->ply + ": not a .ply name");
+    if (!opt->png.empty() && output_format(opt->png) != ".png") usage_error("--png " + opt->png + ": not a .png name");
+    for (const std::string* o : {&opt->output, &opt->ply, &opt->png})
+      if (!o->empty()) check_output_file(*o, "--output");
+  });
   cmd->callback([opt] { run(*opt); });
 }
 
