@@ -149,7 +149,22 @@ std::string_view to_string(ModelKind kind) {
   return "?";
 }
 
+namespace {
+ModelManifest parse_manifest_fields(std::string_view json_text, const fs::path& manifest_path);
+}  // namespace
+
 ModelManifest parse_model_manifest(std::string_view json_text, const fs::path& manifest_path) {
+  // Every JSON access error (a value of another type or range than the field checks expect) is a
+  // bad manifest, named as such, never an escaping nlohmann exception (found by fuzz_model_manifest).
+  try {
+    return parse_manifest_fields(json_text, manifest_path);
+  } catch (const json::exception& e) {
+    throw Error(fmt::format("model manifest {}: {}", manifest_path.string(), e.what()));
+  }
+}
+
+namespace {
+ModelManifest parse_manifest_fields(std::string_view json_text, const fs::path& manifest_path) {
   json root;
   try {
     root = json::parse(json_text);
@@ -196,6 +211,7 @@ ModelManifest parse_model_manifest(std::string_view json_text, const fs::path& m
                             kMaxTensorBytes / 1e6));
   return m;
 }
+}  // namespace
 
 ModelManifest load_model_manifest(const fs::path& model_or_manifest) {
   const fs::path manifest_path = model_or_manifest.extension() == ".json"

@@ -258,3 +258,17 @@ TEST(ModelManifest, NetworkInputRejectsUnusableImages) {
 
 }  // namespace
 }  // namespace slamvdb
+
+namespace slamvdb {
+namespace {
+// Found by fuzz_model_manifest: a number JSON cannot hold escaped as nlohmann's out_of_range.
+TEST(ModelManifestFuzzRegression, OutOfRangeNumbersAreErrorsNamingTheFile) {
+  try {
+    parse_model_manifest("777E7777", "m.json");
+    FAIL() << "accepted";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("m.json"), std::string::npos) << e.what();
+  }
+}
+}  // namespace
+}  // namespace slamvdb

@@ -45,6 +45,8 @@ std::size_t parse_count(const std::string& text, const fs::path& file, const std
   const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), v);
   if (ec != std::errc() || end != text.data() + text.size())
     throw Error(fmt::format("{}: PCD header {} '{}' is not a non-negative integer", file, key, text));
+  if (v >= (std::size_t{1} << 31))  // keeps every product of counts and sizes far from overflow
+    throw Error(fmt::format("{}: PCD header {} {} is too large", file, key, v));
   return v;
 }
 
@@ -134,6 +136,9 @@ const Field* find_field(const Header& h, std::initializer_list<const char*> name
 }
 }  // namespace
 
+// The largest PCD payload read: 256 MiB (16.7 M points of x y z intensity t), as for scans.
+constexpr std::uint64_t kMaxPcdDataBytes = std::uint64_t{256} << 20;
+
 PcdCloud read_pcd(const fs::path& file) {
   std::ifstream in(file, std::ios::binary);
   if (!in) throw Error(fmt::format("cannot open PCD file {}", file));
@@ -152,7 +157,22 @@ PcdCloud read_pcd(const fs::path& file) {
   std::vector<std::size_t> ascii_index(h.fields.size());
   for (std::size_t i = 0, k = 0; i < h.fields.size(); k += h.fields[i].count, ++i) ascii_index[i] = k;
 
+  // Sizes from the header are checked against the bytes that follow before anything is allocated
+  // (a header claiming 2^32 points made a 4 GB allocation; found by fuzz_pcd).
+  const std::uint64_t file_bytes = fs::file_size(file);
+  const std::uint64_t at = static_cast<std::uint64_t>(std::max<std::streamoff>(0, in.tellg()));
+  const std::uint64_t remaining = file_bytes > at ? file_bytes - at : 0;
+  if (h.point_size != 0 && h.points > remaining / h.point_size && h.data == "binary")
+    throw Error(fmt::format("{}: truncated PCD data: {} points of {} bytes need more than the {} bytes left", file,
+                            h.points, h.point_size, remaining));
+  if (h.data != "ascii" && h.point_size != 0 && h.points > kMaxPcdDataBytes / h.point_size)
+    throw Error(fmt::format("{}: PCD data of {} points x {} bytes is above the {} MiB limit", file, h.points,
+                            h.point_size, kMaxPcdDataBytes >> 20));
   if (h.data == "ascii") {
+    // At least two characters (a digit and a separator) per value.
+    if (values_per_point != 0 && h.points > remaining / 2 / values_per_point)
+      throw Error(fmt::format("{}: truncated PCD data: {} points of {} values cannot fit in the {} bytes left", file,
+                              h.points, values_per_point, remaining));
     ascii_values.reserve(h.points * values_per_point);
     std::string word;
     while (ascii_values.size() < h.points * values_per_point && in >> word) {
@@ -182,6 +202,8 @@ PcdCloud read_pcd(const fs::path& file) {
     if (sizes[1] != h.points * h.point_size)
       throw Error(fmt::format("{}: PCD compressed block would hold {} bytes, expected {} for {} points", file,
                               sizes[1], h.points * h.point_size, h.points));
+    if (sizes[0] > remaining)
+      throw Error(fmt::format("{}: truncated PCD data: compressed block of {} bytes, {} left", file, sizes[0], remaining));
     std::vector<unsigned char> packed(sizes[0]);
     in.read(reinterpret_cast<char*>(packed.data()), sizes[0]);
     if (static_cast<std::size_t>(in.gcount()) != packed.size())

@@ -1,6 +1,8 @@
 #include "slamvdb/io/pcd.hpp"
 
+#include <fmt/format.h>
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <cmath>
 #include <cstdlib>
@@ -127,5 +129,30 @@ TEST(Pcd, ReadsWhatPclWrites) {
   }
 }
 
+}  // namespace
+}  // namespace slamvdb
+
+namespace slamvdb {
+namespace {
+// Found by fuzz_pcd: header sizes were trusted before the bytes behind them (a 4 GB allocation).
+TEST(PcdFuzzRegression, SizesBeyondTheFileAreErrorsNotAllocations) {
+  const auto dir = std::filesystem::temp_directory_path() / ("slamvdb_pcd_fuzz_" + std::to_string(::getpid()));
+  std::filesystem::create_directories(dir);
+  const std::string header = "VERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH {}\nHEIGHT 1\n"
+                             "POINTS {}\nDATA {}\n";
+  const auto write = [&](const std::string& name, const std::string& bytes) {
+    std::ofstream(dir / name, std::ios::binary) << bytes;
+    return dir / name;
+  };
+  const std::string compressed_sizes("\xf0\xff\xff\xff\x24\x00\x00\x00", 8);  // 4 GB packed, 36 bytes unpacked
+  EXPECT_THROW(read_pcd(write("a.pcd", fmt::format(fmt::runtime(header), 3, 3, "binary_compressed") + compressed_sizes)),
+               Error);
+  EXPECT_THROW(read_pcd(write("b.pcd", fmt::format(fmt::runtime(header), 2000000000, 2000000000, "binary"))), Error);
+  EXPECT_THROW(read_pcd(write("c.pcd", fmt::format(fmt::runtime(header), 2000000000, 2000000000, "ascii") + "1 2 3\n")),
+               Error);
+  EXPECT_THROW(read_pcd(write("d.pcd", fmt::format(fmt::runtime(header), "99999999999", "99999999999", "binary"))),
+               Error);
+  std::filesystem::remove_all(dir);
+}
 }  // namespace
 }  // namespace slamvdb

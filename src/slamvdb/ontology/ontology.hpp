@@ -94,6 +94,7 @@ class Ontology {
   LabelMapping ground_truth() const;
 
  private:
+  static Ontology parse_checked(std::string_view yaml, std::string_view source);
   LabelMapping mapping(bool ignore_void) const;
 
   std::string name_, source_;

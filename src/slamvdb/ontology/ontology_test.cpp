@@ -157,3 +157,20 @@ TEST(OntologyFile, BadFilesAreErrorsNamingFileAndLine) {
 
 }  // namespace
 }  // namespace slamvdb
+
+namespace slamvdb {
+namespace {
+// Found by fuzz_ontology: a value of the wrong YAML type escaped as yaml-cpp's TypedBadConversion.
+TEST(OntologyFuzzRegression, WrongYamlTypesAreErrorsNamingTheSource) {
+  for (const char* yaml : {"name: {a: 1}\nclasses: []\nlabels: []\n", "name: x\nclasses: [[1, 2]]\nlabels: {}\n",
+                           "name: x\nclasses:\n  - {name: [a], color: [1, 2, 3]}\nlabels: {}\n"}) {
+    try {
+      Ontology::parse(yaml, "fuzz.yaml");
+      ADD_FAILURE() << "accepted: " << yaml;
+    } catch (const Error& e) {
+      EXPECT_NE(std::string(e.what()).find("fuzz.yaml"), std::string::npos) << e.what();
+    }
+  }
+}
+}  // namespace
+}  // namespace slamvdb
