@@ -156,7 +156,7 @@ void add(CLI::App& root) {
       "map_server .yaml), .csv (one row per semantic voxel), .npy (embeddings, positions, counts), .html (3D view). "
       "Semantic voxels are coloured by class with --queries, else by a PCA of their embeddings; the others grey by "
       "height.");
-  cmd->add_option("map", opt->map, "Map file (.svdb)")->required()->check(CLI::ExistingFile);
+  cmd->add_option("map", opt->map, "Map file (.svdb)")->required();
   cmd->add_option("-o,--output", opt->outputs, "Output file(s): .ply .pcd .png .csv .npy .html (repeatable)");
   cmd->add_option("--format", opt->format, "The format of a single -o whose extension says otherwise")
       ->check(CLI::IsMember(kFormats));

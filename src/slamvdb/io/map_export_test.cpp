@@ -341,8 +341,12 @@ TEST_F(MapExportTest, CliInfoPrintsCountsAndExportWritesBothFiles) {
   EXPECT_TRUE(read_file(ply).starts_with("ply\nformat binary_little_endian"));
   const cv::Mat picture = cv::imread(png.string(), cv::IMREAD_COLOR);
   ASSERT_FALSE(picture.empty());
-  EXPECT_EQ(picture.cols, 110);  // x from 0 to 27.5 m (second submap shifted by 20 m) at 0.25 m per pixel
-  EXPECT_EQ(picture.rows, 40);   // y from -5 to 5 m
+  // x from 0 to 27.5 m (second submap shifted by 20 m), y from -5 to 5 m, at 0.25 m per pixel: 110 x 40,
+  // enlarged by a whole factor for the legend (the YAML beside it gives the resolution).
+  ASSERT_EQ(picture.cols % 110, 0);
+  const int k = picture.cols / 110;
+  EXPECT_EQ(picture.rows, 40 * k);
+  EXPECT_NE(read_file(dir_ / "out.yaml").find(fmt::format("resolution: {:.6f}", 0.25 / k)), std::string::npos);
   EXPECT_GT(cv::countNonZero(picture.reshape(1)), 0);
 
   const CliRun ascii = run_cli("export " + quoted(path) + " --ascii --ply " + quoted(ply));
