@@ -4,7 +4,7 @@
 #   FUZZ=1 scripts/build_asan.sh [targets]  build-fuzz/ with clang and libFuzzer coverage (scripts/fuzz.sh)
 # Two trees because Debian's Abseil is built with GCC: under clang's ASan the test suite crashed
 # in the destructor of a class holding an absl::flat_hash_map (a corrupted neighbouring member),
-# while GCC's ASan and clang's TSan run the same tests clean; libFuzzer exists only in clang, and
+# while GCC's ASan runs the same tests clean; libFuzzer exists only in clang, and
 # the fuzzers build only the libraries, not the tests. Benchmarks are built in neither.
 # -O1 and line tables only: fast enough to run, cheap to compile, readable stack traces.
 # Without the TorchScript backend and query training (libtorch is not instrumented and its headers
@@ -21,7 +21,7 @@ if [ "${FUZZ:-0}" = 1 ]; then
   default_targets=(fuzzers)
 else
   tree=build-asan
-  config=(-DCMAKE_CXX_COMPILER=g++ -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O1 -g1")
+  config=(-DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O1 -g1")  # the default compiler: GCC on Debian
   default_targets=(slamvdb_tests slamvdb_cli slamvdb_map_core_only)
 fi
 if [ ! -f $tree/CMakeCache.txt ]; then
