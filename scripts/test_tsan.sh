@@ -11,4 +11,4 @@ if [ ! -f build-tsan/CMakeCache.txt ]; then
     -DSLAMVDB_SANITIZE=thread -DSLAMVDB_WITH_TORCH=OFF -DSLAMVDB_PYTHON_MODULE=OFF "${launcher[@]}" > /dev/null
 fi
 cmake --build build-tsan -j"$(nproc)" --target slamvdb_concurrency_tests
-TSAN_OPTIONS=${TSAN_OPTIONS:-halt_on_error=1 exitcode=66 second_deadlock_stack=1} build-tsan/tests/slamvdb_concurrency_tests
+TSAN_OPTIONS=${TSAN_OPTIONS:-halt_on_error=1 exitcode=66 second_deadlock_stack=1} build-tsan/slamvdb_concurrency_tests
