@@ -9,6 +9,7 @@
 #include <limits>
 #include <random>
 
+#include "slamvdb/core/embedding_kernels.hpp"
 #include "slamvdb/testing/error_of.hpp"
 
 namespace slamvdb {
@@ -88,6 +89,58 @@ TEST(QueryClassifier, BothKernelsMatchAPerRowReference) {
                                  true, 3001);
         expect_matches_reference(QueryClassifier(q, {.void_to_second_best = false, .portable_kernel = portable}), q,
                                  false, 700);
+      }
+    }
+  }
+}
+
+// The map's rows as the index hands them over: fp16 in place, singles and pairs of entries in any
+// order. The AVX2 view kernels (one fp16 row, a pair combined in registers, fp32 rows) must give
+// the portable kernel's answer on the same decoded values.
+TEST(QueryClassifier, StoredRowKernelsMatchThePortableKernel) {
+  for (int n : {1, 5, 6, 7}) {
+    for (int dim : {512, 67}) {
+      SCOPED_TRACE(::testing::Message() << "n " << n << " dim " << dim);
+      const QuerySet q = random_queries(n, dim, n * 7 + dim, n > 2 ? std::vector<int>{n - 1} : std::vector<int>{});
+      constexpr std::size_t kRows = 257;
+      const auto x = random_embeddings(kRows * 2, dim, 5);
+      std::vector<uint16_t> half(x.size());
+      kernels::float_to_half(x.data(), half.data(), x.size());
+      std::vector<float> decoded(x.size());
+      kernels::half_to_float(half.data(), decoded.data(), x.size());
+      std::mt19937 rng(n);
+      std::vector<CombinedView> rows(kRows);
+      std::vector<float> expected_rows(kRows * dim, 0.f);
+      for (std::size_t r = 0; r < kRows; ++r) {
+        CombinedView& v = rows[r];
+        const int kind = static_cast<int>(rng() % 4);  // single fp16 (twice as often), pair, fp32
+        v.view[0] = {half.data() + 2 * r * dim, EmbeddingPrecision::kFloat16};
+        if (kind == 2) {
+          v.n = 2, v.weight[0] = 0.25f, v.weight[1] = 0.75f;
+          v.view[1] = {half.data() + (2 * r + 1) * dim, EmbeddingPrecision::kFloat16};
+        } else if (kind == 3) {
+          v.view[0] = {x.data() + 2 * r * dim, EmbeddingPrecision::kFloat32};
+        }
+        for (int d = 0; d < dim; ++d) {
+          float& e = expected_rows[r * dim + d];
+          if (kind == 3) e = x[2 * r * dim + d];
+          else if (kind == 2) e = 0.25f * decoded[2 * r * dim + d] + 0.75f * decoded[(2 * r + 1) * dim + d];
+          else e = decoded[2 * r * dim + d];
+        }
+      }
+      const QueryClassifier fast(q), portable(q, {.portable_kernel = true});
+      std::vector<QueryMatch> got(kRows);
+      fast.classify_combined(rows.data(), kRows, got.data());
+      const auto want = portable.classify(expected_rows);
+      for (std::size_t r = 0; r < kRows; ++r) {
+        if (got[r].class_index != want[r].class_index) {
+          EXPECT_LT(std::abs(want[r].margin), 1e-5f) << "row " << r << ": only a near tie may flip";
+          continue;
+        }
+        EXPECT_NEAR(got[r].score, want[r].score, 2e-5f) << r;
+        if (!std::isinf(want[r].margin)) {
+          EXPECT_NEAR(got[r].margin, want[r].margin, 2e-5f) << r;
+        }
       }
     }
   }
