@@ -4,12 +4,12 @@
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
-#include <fstream>
 #include <sstream>
 
 #include "command_registry.hpp"
 #include "feature_options.hpp"
 #include "option_checks.hpp"
+#include "slamvdb/core/regular_file.hpp"
 #include "slamvdb/inference/simulated_encoders.hpp"
 #include "demo_outputs.hpp"
 #include "slamvdb/io/atomic_file.hpp"
@@ -42,9 +42,11 @@ Vec3d parse_point(const std::string& text, const std::string& where) {
   return {v[0], v[1], v[2]};
 }
 
+// Points to look up: a regular file (a FIFO would block), at most 256 MiB (~10 M points).
+constexpr std::uint64_t kMaxPointsCsvBytes = std::uint64_t{256} << 20;
+
 std::vector<Vec3d> read_points_csv(const std::string& file) {
-  std::ifstream in(file);
-  if (!in) throw Error(fmt::format("cannot read {}", file));
+  std::istringstream in(read_regular_file(file, "points CSV", kMaxPointsCsvBytes));
   std::vector<Vec3d> points;
   std::string line;
   for (int n = 1; std::getline(in, line); ++n) {

@@ -112,5 +112,15 @@ TEST_F(CliOptionBounds, RuntimeFailuresExitOneNamingTheFile) {
   EXPECT_EQ(r.output.find("unexpected"), std::string::npos) << r.output;
 }
 
+TEST_F(CliOptionBounds, QueryPointsFromAFifoAreAnErrorNotAHang) {
+  ASSERT_EQ(cli("map " + seq() + " -o " + out("m.svdb") + " --dim 8").exit_code, 0);
+  ASSERT_EQ(::mkfifo((tmp_.path / "points.csv").c_str(), 0600), 0);
+  const CommandResult r = cli("query " + out("m.svdb") + " --at-csv " + out("points.csv"));
+  EXPECT_FALSE(r.timed_out);
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_NE(r.output.find("points.csv"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("FIFO"), std::string::npos) << r.output;
+}
+
 }  // namespace
 }  // namespace slamvdb
