@@ -10,6 +10,7 @@
 #include <nlohmann/json.hpp>
 #include <optional>
 
+#include "colour_basis_option.hpp"
 #include "command_registry.hpp"
 #include "demo_outputs.hpp"
 #include "progress.hpp"
@@ -102,6 +103,7 @@ void run(const Options& opt) {
     SemanticMap map = build_map(seq, &source, PipelineOptions{}, report, progress_bar(bar, "map", "scans"));
     if (bar) bar->finish();
     fmt::print("{}\n", report.summary());
+    record_colour_basis(map, {});
     save_map(out / "map.svdb", map);
     fmt::print("map: {} submaps, {} semantic voxels in {} index cells -> {}\n", map.num_submaps(),
                map.num_semantic_voxels(), map.num_index_cells(), (out / "map.svdb").string());

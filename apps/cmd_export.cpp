@@ -10,6 +10,7 @@
 #include <memory>
 #include <optional>
 
+#include "colour_basis_option.hpp"
 #include "command_registry.hpp"
 #include "demo_outputs.hpp"
 #include "feature_options.hpp"
@@ -35,6 +36,7 @@ struct Options {
   bool ascii = false, hill_shading = false, no_void_rule = false, ignore_model_id = false;
   double resolution = 0.0;
   std::string layer = "auto";
+  ColourBasisChoice colour_basis;
 };
 
 // The format of an output: --format for a single output, else its extension.
@@ -54,8 +56,17 @@ double seconds_since(std::chrono::steady_clock::time_point t) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
 }
 
-void run(const Options& opt) {
+void run(Options opt) {
   const auto start = std::chrono::steady_clock::now();
+  if (!opt.colour_basis.file.empty()) {  // checked against the map's summary before loading it
+    const MapFileSummary summary = read_map_summary(opt.map);
+    check_colour_basis_option(opt.colour_basis, summary.params.semantic.dim);
+    if (opt.colour_basis.model_id != summary.info.model_id && !opt.ignore_model_id)
+      throw Error(fmt::format("--colour-basis {} is in embedding space '{}' but {} is in '{}' (--ignore-model-id if "
+                              "they are the same space)",
+                              opt.colour_basis.file, escape_control(opt.colour_basis.model_id), opt.map,
+                              escape_control(summary.info.model_id)));
+  }
   const SemanticMap map = load_map(opt.map);
   std::optional<QuerySet> queries;
   std::vector<ClassifiedCell> cells;
@@ -73,7 +84,7 @@ void run(const Options& opt) {
         const int k = cells[j].match.class_index;
         return k == kNoClass ? Rgb{255, 255, 255} : colours[static_cast<std::size_t>(k)];
       })
-              : colour_by_pca(map);
+              : colour_by_pca(map, opt.colour_basis.basis ? &*opt.colour_basis.basis : nullptr);
   fmt::print("loaded {} ({} occupied voxels, {} semantic cells{}) in {:.1f} s\n", opt.map, voxels.size(),
              map.num_index_cells(), queries ? fmt::format(", classified with {}", opt.queries) : "",
              seconds_since(start));
@@ -175,8 +186,12 @@ void add(CLI::App& root) {
       ->capture_default_str();
   cmd->add_flag("--hillshade", opt->hill_shading, "Shade the bird's-eye picture by the terrain's relief");
   cmd->add_flag("--no-void-rule", opt->no_void_rule, "With --queries: let void classes win");
-  cmd->add_flag("--ignore-model-id", opt->ignore_model_id, "With --queries: accept another model id (same dim)");
+  cmd->add_flag("--ignore-model-id", opt->ignore_model_id,
+                "With --queries or --colour-basis: accept another model id (same dim)");
+  add_colour_basis_option(cmd, opt->colour_basis);
   cmd->parse_complete_callback([opt] {
+    if (!opt->colour_basis.file.empty() && !opt->queries.empty())
+      usage_error("--colour-basis colours by PCA; with --queries the colours are the classes'");
     if (!opt->ply.empty()) opt->outputs.push_back(opt->ply);
     if (!opt->png.empty()) opt->outputs.push_back(opt->png);
     if (opt->outputs.empty()) usage_error("nothing to export: give -o FILE (.ply .pcd .png .csv .npy .html)");

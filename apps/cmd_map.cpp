@@ -6,6 +6,7 @@
 #include <optional>
 #include <regex>
 
+#include "colour_basis_option.hpp"
 #include "command_registry.hpp"
 #include "yaml_config.hpp"
 #include "map_option_checks.hpp"
@@ -37,6 +38,7 @@ struct Options {
   bool realtime = false;
   std::string occlusion = "active";
   double max_image_pixels = static_cast<double>(kDefaultMaxImagePixels);
+  ColourBasisChoice colour_basis;
 };
 
 std::array<double, 5> parse_distortion(const std::string& text) {
@@ -109,6 +111,7 @@ void run(Options opt, const std::string& config) {
   MapInfo info = map.info();
   info.config = config;  // the map says how it was made
   map.set_info(info);
+  record_colour_basis(map, opt.colour_basis);
   save_map(opt.output, map);
   std::size_t semantic_bytes = 0;
   for (const SubmapInfo& info : map.submaps())
@@ -191,8 +194,10 @@ void add(CLI::App& root) {
       ->check(finite_range(1, bounds::kMaxImagePixels));
   cmd->add_flag("--realtime", opt->realtime,
                 "Drop (and count) frames that find the inference queue full, as on a robot; default: replay every frame");
+  add_colour_basis_option(cmd, opt->colour_basis);
   cmd->parse_complete_callback([opt] {
     check_map_options(opt->pipeline, opt->features, opt->feature_size, opt->precision, opt->distortion, opt->output);
+    check_colour_basis_option(opt->colour_basis, opt->pipeline.map.semantic.dim);
   });
   cmd->callback([opt, cmd] { run(*opt, effective_config(*cmd)); });
 }

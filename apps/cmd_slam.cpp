@@ -7,6 +7,7 @@
 
 #include <optional>
 
+#include "colour_basis_option.hpp"
 #include "command_registry.hpp"
 #include "yaml_config.hpp"
 #include "feature_options.hpp"
@@ -32,6 +33,7 @@ struct Options {
   TrackingOptions tracking;
   PipelineOptions pipeline;
   double min_merge_overlap = MergeOptions{}.min_overlap;
+  ColourBasisChoice colour_basis;
 };
 
 // Pose errors of the scans that have a ground-truth pose, after SE(3) alignment.
@@ -100,6 +102,7 @@ void run(Options opt, const std::string& config) {
                 seq.root.string();
   info.config = config;
   map.set_info(info);
+  record_colour_basis(map, opt.colour_basis);
   save_map(opt.output, map);
   if (!opt.poses_out.empty()) write_trajectory(opt.poses_out, tracked.stamps, corrected_poses, opt.format);
 
@@ -155,8 +158,10 @@ void add(CLI::App& root) {
                   "Merge two submaps joined by a loop when this share of occupied voxels agrees")
       ->capture_default_str()
       ->check(finite_range(0, 1));
+  add_colour_basis_option(cmd, opt->colour_basis);
   cmd->parse_complete_callback([opt] {
     check_feature_options(opt->features);
+    check_colour_basis_option(opt->colour_basis, opt->features.dim);
     check_output_file(opt->output, "-o");
     if (!opt->poses_out.empty()) check_output_file(opt->poses_out, "--poses-out");
     try {

@@ -40,14 +40,7 @@ uint8_t to_channel(float t) { return static_cast<uint8_t>(std::lround(std::clamp
 
 }  // namespace
 
-Rgb PcaColouring::colour(const float* embedding) const {
-  const Eigen::Vector3f p = components * (Eigen::Map<const Eigen::VectorXf>(embedding, mean.size()) - mean);
-  Rgb rgb;
-  for (int c = 0; c < 3; ++c) rgb[c] = hi[c] > lo[c] ? to_channel((p[c] - lo[c]) / (hi[c] - lo[c])) : 128;
-  return rgb;
-}
-
-PcaColouring fit_pca_colouring(const SemanticMap& map, std::size_t max_samples) {
+ColourBasis fit_pca_colouring(const SemanticMap& map, std::size_t max_samples) {
   const int dim = map.params().semantic.dim;
   Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> X;
   map.read_index([&](const GlobalIndex& index) {
@@ -65,7 +58,7 @@ PcaColouring fit_pca_colouring(const SemanticMap& map, std::size_t max_samples) 
     }
   });
   const Eigen::Index m = X.rows();
-  PcaColouring pca;
+  ColourBasis pca;
   pca.mean = X.colwise().mean().transpose();
   X.rowwise() -= pca.mean.transpose();
   const Eigen::MatrixXd covariance = (X.transpose() * X).cast<double>() / static_cast<double>(std::max<Eigen::Index>(m - 1, 1));
@@ -129,9 +122,22 @@ std::vector<ColouredVoxel> colour_occupied_voxels(const SemanticMap& map, const 
   return voxels;
 }
 
-std::vector<ColouredVoxel> colour_by_pca(const SemanticMap& map) {
+ColourBasis colour_basis_of(const SemanticMap& map, const ColourBasis* chosen) {
+  const int dim = map.params().semantic.dim;
+  if (chosen) {
+    chosen->validate(dim);
+    return *chosen;
+  }
+  if (map.info().colour_basis) {
+    map.info().colour_basis->validate(dim);
+    return *map.info().colour_basis;
+  }
+  return fit_pca_colouring(map);
+}
+
+std::vector<ColouredVoxel> colour_by_pca(const SemanticMap& map, const ColourBasis* chosen) {
   if (map.num_index_cells() == 0) return colour_occupied_voxels(map, [](const float*) { return Rgb{}; });
-  const PcaColouring pca = fit_pca_colouring(map);
+  const ColourBasis pca = colour_basis_of(map, chosen);
   return colour_occupied_voxels(map, [&](const float* e) { return pca.colour(e); });
 }
 

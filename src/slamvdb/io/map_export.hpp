@@ -10,6 +10,7 @@
 #include <opencv2/core.hpp>
 #include <vector>
 
+#include "slamvdb/map/colour_basis.hpp"
 #include "slamvdb/map/semantic_map.hpp"
 
 namespace slamvdb {
@@ -23,17 +24,15 @@ struct ColouredVoxel {
   uint32_t count;  // semantic observation count, 0 without semantics
 };
 
-// The first three principal components of the map's embeddings, mapped to red, green and blue.
-struct PcaColouring {
-  Eigen::VectorXf mean;
-  Eigen::Matrix<float, 3, Eigen::Dynamic> components;  // unit axes, largest variance first
-  Eigen::Array3f lo, hi;  // 2nd and 98th percentile of each projection: channel 0 and 255
-  Rgb colour(const float* embedding) const;
-};
+// The first three principal components of the map's embeddings as a colour basis, their 2nd and
+// 98th percentiles as channels 0 and 255. Fits on at most `max_samples` semantic voxels, an even
+// subsample in key order (the same map always gets the same basis). Throws Error when the map has
+// no semantic voxels.
+ColourBasis fit_pca_colouring(const SemanticMap& map, std::size_t max_samples = 20000);
 
-// Fits on at most `max_samples` semantic voxels, an even subsample in key order (so the same map
-// always gets the same colours). Throws Error when the map has no semantic voxels.
-PcaColouring fit_pca_colouring(const SemanticMap& map, std::size_t max_samples = 20000);
+// The basis a map is drawn in: `chosen` if given, else the one saved in the map
+// (MapInfo::colour_basis), else one fitted on the map (maps saved before bases were recorded).
+ColourBasis colour_basis_of(const SemanticMap& map, const ColourBasis* chosen = nullptr);
 
 // Colour of a semantic voxel from its decoded embedding (map.params.semantic.dim floats).
 using EmbeddingColour = std::function<Rgb(const float* embedding)>;
@@ -41,8 +40,8 @@ using EmbeddingColour = std::function<Rgb(const float* embedding)>;
 // Every occupied voxel of every submap, placed by its submap pose. Semantic voxels get
 // `semantic_colour`; the others a grey by world height (2nd..98th percentile: dark..light).
 std::vector<ColouredVoxel> colour_occupied_voxels(const SemanticMap& map, const EmbeddingColour& semantic_colour);
-// The same with PCA colours (fitted on this map) for semantic voxels.
-std::vector<ColouredVoxel> colour_by_pca(const SemanticMap& map);
+// The same with PCA colours for semantic voxels, in colour_basis_of(map, chosen).
+std::vector<ColouredVoxel> colour_by_pca(const SemanticMap& map, const ColourBasis* chosen = nullptr);
 
 using ExportProgress = std::function<void(std::size_t done, std::size_t total)>;
 

@@ -64,7 +64,7 @@ TEST(MapExport, PcaRecoversTheAxesOfLargestVarianceAndMapsThemToChannels) {
         voxels.semantics().set({x++, 0, 0}, e.data(), 1);
       }
   map.add_finished_submap({}, std::move(voxels));
-  const PcaColouring pca = fit_pca_colouring(map);
+  const ColourBasis pca = fit_pca_colouring(map);
   for (int c = 0; c < 3; ++c) EXPECT_GT(std::abs(pca.components.row(c).dot(basis.col(c))), 0.999f) << c;
   EXPECT_LT((pca.mean - mean).norm(), 1e-5f);
 
@@ -75,7 +75,7 @@ TEST(MapExport, PcaRecoversTheAxesOfLargestVarianceAndMapsThemToChannels) {
   for (const uint8_t v : pca.colour(mean.data())) EXPECT_NEAR(v, 128, 2);
 
   // Subsampling keeps the axes (an even stride over key order).
-  const PcaColouring sub = fit_pca_colouring(map, 100);
+  const ColourBasis sub = fit_pca_colouring(map, 100);
   EXPECT_GT(std::abs(sub.components.row(0).dot(basis.col(0))), 0.99f);
   EXPECT_THROW(fit_pca_colouring(empty_map(1.0, 4)), Error);
 }

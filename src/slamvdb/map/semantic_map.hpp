@@ -22,6 +22,7 @@
 #include <string>
 #include <vector>
 
+#include "slamvdb/map/colour_basis.hpp"
 #include "slamvdb/map/global_index.hpp"
 #include "slamvdb/map/submap.hpp"
 #include "slamvdb/map/submap_merge.hpp"
@@ -33,6 +34,7 @@ struct MapInfo {
   std::string ontology = "rellis3d";
   std::string source;               // what the map was built from (dataset path, simulated or not)
   std::string config;               // how: the effective options of the command that made it (YAML)
+  std::optional<ColourBasis> colour_basis;  // the colours it is drawn in (see colour_basis.hpp)
 };
 
 struct MergeOptions {

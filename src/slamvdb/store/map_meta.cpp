@@ -3,6 +3,7 @@
 
 #include <charconv>
 #include <cmath>
+#include <iterator>
 
 #include "slamvdb/store/map_rows.hpp"
 
@@ -40,6 +41,48 @@ T parse_number(const Meta& meta, const std::string& key) {
   return v;
 }
 
+// "dim lo0 lo1 lo2 hi0 hi1 hi2 mean[dim] axis0[dim] axis1[dim] axis2[dim]", shortest exact floats.
+std::string format_colour_basis(const ColourBasis& b) {
+  std::string text = std::to_string(b.dim());
+  const auto add = [&](float v) { fmt::format_to(std::back_inserter(text), " {}", v); };
+  for (int c = 0; c < 3; ++c) add(b.lo[c]);
+  for (int c = 0; c < 3; ++c) add(b.hi[c]);
+  for (int d = 0; d < b.dim(); ++d) add(b.mean[d]);
+  for (int c = 0; c < 3; ++c)
+    for (int d = 0; d < b.dim(); ++d) add(b.components(c, d));
+  return text;
+}
+
+ColourBasis parse_colour_basis(const std::string& text, int map_dim) {
+  const char* p = text.data();
+  const char* const end = p + text.size();
+  const auto next = [&](auto& v) {
+    while (p < end && *p == ' ') ++p;
+    const auto [q, ec] = std::from_chars(p, end, v);
+    if (ec != std::errc()) throw Error("meta entry 'colour_basis' is not a list of numbers");
+    p = q;
+  };
+  int dim = 0;
+  next(dim);
+  if (dim != map_dim)
+    throw Error(fmt::format("meta entry 'colour_basis' is for {}-d embeddings, the map's are {}-d", dim, map_dim));
+  ColourBasis b;
+  b.mean.resize(dim);
+  b.components.resize(3, dim);
+  for (int c = 0; c < 3; ++c) next(b.lo[c]);
+  for (int c = 0; c < 3; ++c) next(b.hi[c]);
+  for (int d = 0; d < dim; ++d) next(b.mean[d]);
+  for (int c = 0; c < 3; ++c)
+    for (int d = 0; d < dim; ++d) next(b.components(c, d));
+  if (p != end) throw Error("meta entry 'colour_basis' has more numbers than its dimension");
+  try {
+    b.validate(map_dim);
+  } catch (const Error& e) {
+    throw Error(fmt::format("meta entry 'colour_basis': {}", e.what()));
+  }
+  return b;
+}
+
 }  // namespace
 
 Meta map_meta(const MapParams& params, const MapInfo& info) {
@@ -51,6 +94,7 @@ Meta map_meta(const MapParams& params, const MapInfo& info) {
   meta["ontology"] = info.ontology;
   meta["source"] = info.source;
   if (!info.config.empty()) meta["config"] = info.config;
+  if (info.colour_basis) meta["colour_basis"] = format_colour_basis(*info.colour_basis);
   return meta;
 }
 
@@ -80,10 +124,13 @@ MapParams parse_params(const Meta& meta) {
   return params;
 }
 
-MapInfo parse_info(const Meta& meta) {
+MapInfo parse_info(const Meta& meta, int dim) {
   const auto config = meta.find("config");  // maps before the effective configuration was recorded lack it
-  return {meta_value(meta, "model_id"), meta_value(meta, "ontology"), meta_value(meta, "source"),
-          config == meta.end() ? std::string() : config->second};
+  MapInfo info{meta_value(meta, "model_id"), meta_value(meta, "ontology"), meta_value(meta, "source"),
+               config == meta.end() ? std::string() : config->second, std::nullopt};
+  if (const auto basis = meta.find("colour_basis"); basis != meta.end())  // absent before bases were saved
+    info.colour_basis = parse_colour_basis(basis->second, dim);
+  return info;
 }
 
 void write_meta(Database& db, const Meta& meta) {

@@ -19,7 +19,7 @@ extern const char* const kIndexes;
 // ---- meta ----
 Meta map_meta(const MapParams& params, const MapInfo& info);
 MapParams parse_params(const Meta& meta);  // validated; throws Error naming the bad entry
-MapInfo parse_info(const Meta& meta);
+MapInfo parse_info(const Meta& meta, int dim);  // dim: the map's embedding dimension
 const std::string& meta_value(const Meta& meta, const std::string& key);
 void write_meta(Database& db, const Meta& meta);
 Meta read_meta(Database& db);

@@ -87,7 +87,7 @@ MapFileSummary read_summary(const fs::path& path, Database& db) {
   summary.format_version = static_cast<int>(pragma_value(db, "user_version"));
   const Meta meta = read_meta(db);
   summary.params = parse_params(meta);
-  summary.info = parse_info(meta);
+  summary.info = parse_info(meta, summary.params.semantic.dim);
   summary.memory_bytes = optional_number(meta, "memory_bytes");
   summary.occupancy_payload_bytes = optional_number(meta, "occupancy_payload_bytes");
   summary.semantic_payload_bytes = optional_number(meta, "semantic_payload_bytes");

@@ -172,6 +172,64 @@ TEST_F(MapValidationTest, ImpossibleContentWithRightChecksumsIsRefused) {
   expect_refused(p, "refers to submap 99, which is not in the file");
 }
 
+// The colour basis a map is drawn in is saved bit-exactly and checked like every other value.
+TEST_F(MapValidationTest, ColourBasisRoundTripsExactlyAndIsChecked) {
+  SemanticMap m = make_map(EmbeddingPrecision::kFloat16, 16, 21);
+  ColourBasis basis;
+  basis.mean = Eigen::VectorXf::LinSpaced(16, -0.3f, 0.7f);
+  basis.components = Eigen::Matrix<float, 3, Eigen::Dynamic>::Random(3, 16);
+  basis.components.rowwise().normalize();
+  basis.lo << -0.123456789f, -1.f / 3.f, 0.f;
+  basis.hi << 0.987654321f, 2.f / 3.f, 1e-7f;
+  MapInfo info = m.info();
+  info.colour_basis = basis;
+  m.set_info(info);
+  const fs::path p = dir_ / "basis.svdb";
+  save_map(p, m);
+  for (const MapInfo& loaded : {load_map(p).info(), read_map_summary(p).info}) {
+    ASSERT_TRUE(loaded.colour_basis.has_value());
+    EXPECT_EQ(loaded.colour_basis->mean, basis.mean);
+    EXPECT_EQ(loaded.colour_basis->components, basis.components);
+    EXPECT_TRUE((loaded.colour_basis->lo == basis.lo).all());
+    EXPECT_TRUE((loaded.colour_basis->hi == basis.hi).all());
+  }
+  // Maps without one (saved before bases were recorded) load without one.
+  EXPECT_FALSE(load_map(good_copy("plain.svdb")).info().colour_basis.has_value());
+
+  std::string text;
+  {
+    Db db(p);
+    sqlite3_stmt* s = db.prepare("SELECT value FROM meta WHERE key = 'colour_basis'");
+    ASSERT_EQ(sqlite3_step(s), SQLITE_ROW);
+    text = reinterpret_cast<const char*>(sqlite3_column_text(s, 0));
+    sqlite3_finalize(s);
+  }
+  const std::string rest = text.substr(text.find(' '));  // everything after the dimension
+  for (const auto& [value, why] : {std::pair{"8" + rest, "for 8-d embeddings, the map's are 16-d"},
+                                   std::pair{text + " 1", "more numbers than its dimension"},
+                                   std::pair{text.substr(0, text.size() / 2), "not a list of numbers"},
+                                   std::pair{std::string("16 x"), "not a list of numbers"}}) {
+    const fs::path bad = dir_ / "bad_basis.svdb";
+    fs::copy_file(p, bad, fs::copy_options::overwrite_existing);
+    set_meta(bad, "colour_basis", value);
+    expect_refused(bad, why);
+  }
+  // Impossible values, written as a buggy writer would.
+  for (const auto& [edit, why] : std::vector<std::pair<std::function<void(ColourBasis&)>, std::string>>{
+           {[](ColourBasis& b) { b.mean[3] = NAN; }, "non-finite"},
+           {[](ColourBasis& b) { b.components(1, 0) = INFINITY; }, "non-finite"},
+           {[](ColourBasis& b) { b.components.row(2) *= 2.f; }, "axis 2 has length 2"},
+           {[](ColourBasis& b) { b.lo[0] = 5.f; }, "lo 5 above hi"}}) {
+    ColourBasis b = basis;
+    edit(b);
+    info.colour_basis = b;
+    m.set_info(info);
+    const fs::path bad = dir_ / "bad_values.svdb";
+    save_map(bad, m);
+    expect_refused(bad, why);
+  }
+}
+
 // `info` reads summaries only; `info --check` loads and validates everything.
 TEST_F(MapValidationTest, InfoCheckRunsTheFullValidation) {
   const fs::path good = good_copy("ok.svdb"), bad = good_copy("bad.svdb");
