@@ -57,7 +57,7 @@ void run(const Options& opt) {
   fmt::print("  ATE  rmse {:.3f} m, mean {:.3f} m, median {:.3f} m, max {:.3f} m (after SE(3) alignment)\n", ate.rmse,
              ate.mean, ate.median, ate.max);
   fmt::print("  RPE  {:.4f} m, {:.4f} deg per step (rmse)\n", rpe.translation_rmse, rpe.rotation_rmse_deg);
-  fmt::print("  drift {:.3f} %, {:.5f} deg/m over {} segments of {} m\n", drift.translation_percent,
+  fmt::print("  drift {:.3f} %, {:.5f} deg/m over {} segments of {:.1f} m\n", drift.translation_percent,
              drift.rotation_deg_per_m, drift.segments, fmt::join(drift.lengths, ", "));
 
   std::vector<std::pair<Vec3d, Vec3d>> edges;

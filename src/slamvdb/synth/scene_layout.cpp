@@ -58,6 +58,14 @@ class Layout {
   }
   // Reserves a footprint for a hand-placed object, whatever is near.
   void block(const Eigen::Vector2d& p, double radius) { reserved_.push_back({p, radius}); }
+  // True if a footprint of `radius` at p leaves the vehicle's way free along the WHOLE loop. A
+  // hand-placed object sits beside one point of the path, but on a short loop another stretch
+  // can pass there (seed 3 of a 100 m loop drove through the yard's building: the LiDAR saw
+  // only walls within 3 m and odometry lost track); such an object is left out.
+  bool clear_of_path(const Eigen::Vector2d& p, double radius) const {
+    constexpr double kVehicleClearance = 1.5;  // vehicle half width plus a margin, metres
+    return path_.distance(p) >= radius + kVehicleClearance;
+  }
   void add(const Primitive& p) { objects_.push_back(p); }
   std::vector<Primitive> take_objects() { return std::move(objects_); }
 
@@ -178,36 +186,45 @@ Scene build_offroad_scene(const LoopPath& path, uint64_t seed) {
   const double yard_heading = heading_at(path, yard);
   layout.block(path.at(yard, -10.0), 13.0);
   layout.block(path.at(yard, -22.0), 9.5);
-  layout.add_box_on_ground(kBuilding, Eigen::Vector3f(0.70f, 0.58f, 0.48f), path.at(yard, -22.0),
-                           Eigen::Vector2d(8.0, 5.0), 6.5, yard_heading);
-  layout.add_vehicle(path.at(yard - 7.0, -10.5), heading_at(path, yard - 7.0) + 0.5 * std::numbers::pi,
-                     Eigen::Vector3f(0.12f, 0.22f, 0.55f));
-  layout.add_vehicle(path.at(yard + 1.0, -10.5), heading_at(path, yard + 1.0) + 0.5 * std::numbers::pi,
-                     Eigen::Vector3f(0.82f, 0.82f, 0.84f));
-  layout.add_person(path.at(yard + 6.0, -8.0), Eigen::Vector3f(0.75f, 0.15f, 0.12f));
+  if (layout.clear_of_path(path.at(yard, -22.0), 9.5))
+    layout.add_box_on_ground(kBuilding, Eigen::Vector3f(0.70f, 0.58f, 0.48f), path.at(yard, -22.0),
+                             Eigen::Vector2d(8.0, 5.0), 6.5, yard_heading);
+  if (layout.clear_of_path(path.at(yard - 7.0, -10.5), 2.6))
+    layout.add_vehicle(path.at(yard - 7.0, -10.5), heading_at(path, yard - 7.0) + 0.5 * std::numbers::pi,
+                       Eigen::Vector3f(0.12f, 0.22f, 0.55f));
+  if (layout.clear_of_path(path.at(yard + 1.0, -10.5), 2.6))
+    layout.add_vehicle(path.at(yard + 1.0, -10.5), heading_at(path, yard + 1.0) + 0.5 * std::numbers::pi,
+                       Eigen::Vector3f(0.82f, 0.82f, 0.84f));
+  if (layout.clear_of_path(path.at(yard + 6.0, -8.0), 0.4))
+    layout.add_person(path.at(yard + 6.0, -8.0), Eigen::Vector3f(0.75f, 0.15f, 0.12f));
   for (int i = 0; i < 5; ++i) {
     const double s = yard + 3.0 + 2.3 * i;
-    layout.add_box_on_ground(kBarrier, Eigen::Vector3f(0.95f, 0.52f, 0.15f), path.at(s, -4.6),
-                             Eigen::Vector2d(1.0, 0.3), 0.8, heading_at(path, s));
+    if (layout.clear_of_path(path.at(s, -4.6), 1.1))
+      layout.add_box_on_ground(kBarrier, Eigen::Vector3f(0.95f, 0.52f, 0.15f), path.at(s, -4.6),
+                               Eigen::Vector2d(1.0, 0.3), 0.8, heading_at(path, s));
   }
   // A shed across the loop, another vehicle and people by the dirt trail.
   const double shed = 0.55 * P;
   layout.block(path.at(shed, 20.0), 5.5);
-  layout.add_box_on_ground(kBuilding, Eigen::Vector3f(0.55f, 0.45f, 0.40f), path.at(shed, 20.0),
-                           Eigen::Vector2d(4.0, 3.0), 3.5, heading_at(path, shed) + 0.3);
+  if (layout.clear_of_path(path.at(shed, 20.0), 5.5))
+    layout.add_box_on_ground(kBuilding, Eigen::Vector3f(0.55f, 0.45f, 0.40f), path.at(shed, 20.0),
+                             Eigen::Vector2d(4.0, 3.0), 3.5, heading_at(path, shed) + 0.3);
   layout.block(path.at(0.5 * P, 6.5), 2.6);
-  layout.add_vehicle(path.at(0.5 * P, 6.5), heading_at(path, 0.5 * P), Eigen::Vector3f(0.22f, 0.30f, 0.18f));
+  if (layout.clear_of_path(path.at(0.5 * P, 6.5), 2.6))
+    layout.add_vehicle(path.at(0.5 * P, 6.5), heading_at(path, 0.5 * P), Eigen::Vector3f(0.22f, 0.30f, 0.18f));
   for (double f : {0.47, 0.82}) {
     const double lateral = f < 0.5 ? 4.6 : -4.8;
     layout.block(path.at(f * P, lateral), 0.4);
-    layout.add_person(path.at(f * P, lateral),
-                      f < 0.5 ? Eigen::Vector3f(0.20f, 0.35f, 0.70f) : Eigen::Vector3f(0.85f, 0.75f, 0.10f));
+    if (layout.clear_of_path(path.at(f * P, lateral), 0.4))
+      layout.add_person(path.at(f * P, lateral),
+                        f < 0.5 ? Eigen::Vector3f(0.20f, 0.35f, 0.70f) : Eigen::Vector3f(0.85f, 0.75f, 0.10f));
   }
   for (int i = 0; i < 4; ++i) {  // a second row of barriers closing a side track
     const double s = 0.93 * P + 2.3 * i;
     layout.block(path.at(s, 4.6), 1.1);
-    layout.add_box_on_ground(kBarrier, Eigen::Vector3f(0.92f, 0.90f, 0.86f), path.at(s, 4.6), Eigen::Vector2d(1.0, 0.3),
-                             0.8, heading_at(path, s));
+    if (layout.clear_of_path(path.at(s, 4.6), 1.1))
+      layout.add_box_on_ground(kBarrier, Eigen::Vector3f(0.92f, 0.90f, 0.86f), path.at(s, 4.6),
+                               Eigen::Vector2d(1.0, 0.3), 0.8, heading_at(path, s));
   }
   // Utility poles along the asphalt, outside the loop.
   for (double s = 5.0; s < 0.3 * P; s += 22.0) {
