@@ -15,10 +15,8 @@ namespace {
 
 namespace fs = std::filesystem;
 using testing::CommandResult;
-using testing::run_command;
 using testing::shell_quote;
-
-CommandResult cli(const std::string& args) { return run_command("exec " + shell_quote(SLAMVDB_CLI_PATH) + " " + args, 120.0); }
+const auto cli = [](const std::string& args) { return testing::run_cli(args); };
 
 std::string bytes_of(const fs::path& p) {
   std::ifstream in(p, std::ios::binary);

@@ -18,9 +18,7 @@ using testing::CommandResult;
 using testing::run_command;
 using testing::shell_quote;
 
-CommandResult cli(const std::string& args) {
-  return run_command("exec " + shell_quote(SLAMVDB_CLI_PATH) + " " + args, 60.0);
-}
+CommandResult cli(const std::string& args) { return testing::run_cli(args, 60.0); }
 
 class CliOptionBounds : public ::testing::Test {
  protected:

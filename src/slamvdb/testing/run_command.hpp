@@ -77,4 +77,11 @@ inline std::string shell_quote(const std::string& text) {
   return out + "'";
 }
 
+#ifdef SLAMVDB_CLI_PATH
+// The project's CLI with `args` (shell words, already quoted), as run_command runs it.
+inline CommandResult run_cli(const std::string& args, double timeout_seconds = 120.0) {
+  return run_command("exec " + shell_quote(SLAMVDB_CLI_PATH) + " " + args, timeout_seconds);
+}
+#endif
+
 }  // namespace slamvdb::testing
