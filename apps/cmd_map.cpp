@@ -18,9 +18,11 @@
 #if SLAMVDB_WITH_TORCH
 #include "slamvdb/inference/torch_encoders.hpp"
 #endif
+#include "slamvdb/store/map_file_writer.hpp"
 #include "slamvdb/store/map_store.hpp"
 #include "slamvdb/io/sequence_reader.hpp"
 #include "slamvdb/pipeline/mapping_pipeline.hpp"
+#include "slamvdb/pipeline/pose_source.hpp"
 
 namespace slamvdb::cli {
 namespace {
@@ -35,7 +37,9 @@ struct Options {
   int threads = -1;
   PipelineOptions pipeline;
   SimulatedEncoderConfig sim;
-  bool realtime = false;
+  bool realtime = false, resume = false, no_checkpoints = false;
+  std::string poses, pose_format = "auto";
+  double queue_mb = 1024;
   std::string occlusion = "active";
   double max_image_pixels = static_cast<double>(kDefaultMaxImagePixels);
   ColourBasisChoice colour_basis;
@@ -86,8 +90,37 @@ std::unique_ptr<FeatureSource> make_feature_source(const Options& opt, const Seq
   throw Error(fmt::format("--features '{}': expected simulated, model, precomputed or none", opt.features));
 }
 
+// A run continues a map file only with the parameters that made it (a voxel of another size or an
+// embedding of another model would not be the same map); the first difference is named.
+void check_resumable(const SemanticMap& map, const MapParams& p, const std::string& model_id, const Sequence& seq,
+                     const std::string& file) {
+  const MapParams& f = map.params();
+  const std::pair<const char*, bool> same[] = {
+      {"--voxel-size", f.occupancy.voxel_size == p.occupancy.voxel_size},
+      {"--dim", f.semantic.dim == p.semantic.dim},
+      {"--precision", f.semantic.precision == p.semantic.precision},
+      {"--submap-length", f.submap_length == p.submap_length},
+      {"--min-range", f.occupancy.min_point_range == p.occupancy.min_point_range},
+      {"--max-range", f.occupancy.max_point_range == p.occupancy.max_point_range},
+      {"--max-clearing-range", f.occupancy.max_clearing_range == p.occupancy.max_clearing_range},
+      {"log-odds parameters", f.occupancy.log_odds_hit == p.occupancy.log_odds_hit &&
+                                  f.occupancy.log_odds_miss == p.occupancy.log_odds_miss &&
+                                  f.occupancy.clamp_min == p.occupancy.clamp_min &&
+                                  f.occupancy.clamp_max == p.occupancy.clamp_max},
+      {"index cell size", f.index_cell() == p.index_cell()}};
+  for (const auto& [what, equal] : same)
+    if (!equal) throw Error(fmt::format("--resume: {} differs from the run that made {}; give the same options", what, file));
+  if (map.info().model_id != model_id)
+    throw Error(fmt::format("--resume: {} holds embeddings of '{}', this run's features are '{}'", file,
+                            escape_control(map.info().model_id), escape_control(model_id)));
+  if (map.info().source != seq.root.string())
+    throw Error(fmt::format("--resume: {} was made from {}, not {}", file, escape_control(map.info().source),
+                            seq.root.string()));
+}
+
 void run(Options opt, const std::string& config) {
   opt.pipeline.fusion.occlusion_from_other_submaps = opt.occlusion == "all";
+  opt.pipeline.map.semantic.precision = precision_from_string(opt.precision);
   opt.pipeline.map.validate();
   ReadOptions read_options;
   if (!opt.distortion.empty()) read_options.distortion = parse_distortion(opt.distortion);
@@ -96,32 +129,58 @@ void run(Options opt, const std::string& config) {
   fmt::print("sequence {} ({} layout): {} scans, {} images\n", seq.root.string(), seq.layout, seq.scans.size(),
              seq.images.size());
   for (const auto& note : seq.notes) fmt::print("  note: {}\n", escape_control(note));
-  opt.pipeline.map.semantic.precision = precision_from_string(opt.precision);
-  opt.pipeline.policy = opt.realtime ? QueuePolicy::kDropWhenFull : QueuePolicy::kReplay;
+  opt.pipeline.realtime = opt.realtime;
+  opt.pipeline.queue_bytes = static_cast<std::size_t>(opt.queue_mb * 1e6);
   const auto source = make_feature_source(opt, seq);
+  std::unique_ptr<PoseSource> pose_source = std::make_unique<DatasetPoses>();
+  if (!opt.poses.empty())
+    pose_source = std::make_unique<PoseFile>(opt.poses, opt.pose_format == "auto" ? std::nullopt
+                                                                                   : parse_pose_format(opt.pose_format));
+  const Trajectory poses = pose_source->trajectory(seq);
+  opt.pipeline.poses = &poses;
+  fmt::print("poses: {} ({} poses)\n", pose_source->describe(), poses.size());
+
+  MapInfo info;
+  info.model_id = source ? source->model_id() : "";
+  info.source = seq.root.string();
+  info.config = config;
+  std::optional<SemanticMap> start;
+  std::unique_ptr<MapFileWriter> writer;
+  if (opt.resume) {
+    start.emplace(load_map(opt.output));
+    check_resumable(*start, opt.pipeline.map, info.model_id, seq, opt.output);
+    double end = -1e300;
+    for (const SubmapInfo& s : start->submaps()) end = std::max(end, s.time_range.end);
+    fmt::print("resuming {}: {} finished submaps, mapped up to {:.3f} s\n", opt.output, start->num_submaps(),
+               start->num_submaps() ? end : 0.0);
+    writer = MapFileWriter::open_existing(opt.output);
+  } else {
+    start.emplace(opt.pipeline.map, info);
+    if (!opt.no_checkpoints) writer = MapFileWriter::create(opt.output, opt.pipeline.map, info);
+  }
+  opt.pipeline.store = writer.get();
 
   std::optional<ProgressBar> bar;
   PipelineReport report;
-  SemanticMap map = build_map(seq, source.get(), opt.pipeline, report, [&](std::size_t done, std::size_t total) {
-    if (!bar) bar.emplace("map", total);
-    bar->update(done);
-  });
+  SemanticMap map = continue_map(std::move(*start), seq, source.get(), opt.pipeline, report,
+                                 [&](std::size_t done, std::size_t total) {
+                                   if (!bar) bar.emplace("map", total);
+                                   bar->update(done);
+                                 });
   if (bar) bar->finish();
   fmt::print("{}\n", escape_control_keep_lines(report.summary()));
-  MapInfo info = map.info();
-  info.config = config;  // the map says how it was made
-  map.set_info(info);
+  MapInfo final_info = map.info();
+  final_info.config = config;  // the map says how it was made
+  map.set_info(final_info);
   record_colour_basis(map, opt.colour_basis);
-  save_map(opt.output, map);
-  std::size_t semantic_bytes = 0;
-  for (const SubmapInfo& info : map.submaps())
-    map.read_submap(info.id, [&](const Submap& s) { semantic_bytes += s.voxels().semantics().memory_bytes(); });
-  const std::size_t semantic = map.num_semantic_voxels();
-  fmt::print("map saved to {}: {} submaps, {} occupied voxels, {} semantic entries ({} {}-d, {:.0f} B each in "
-             "memory) in {} world cells of the global index, {:.1f} MB in memory\n",
-             opt.output, map.num_submaps(), map.num_occupied_voxels(), semantic, opt.precision,
-             map.params().semantic.dim, semantic ? static_cast<double>(semantic_bytes) / semantic : 0.0,
-             map.num_index_cells(), map.memory_bytes() / 1e6);
+  if (writer) writer->finish(map.info(), map.memory_bytes());
+  else save_map(opt.output, map);
+  // What the file holds (with submaps unloaded during the run, more than memory does now).
+  const MapFileSummary saved = read_map_summary(opt.output);
+  fmt::print("map saved to {}: {} submaps, {} occupied voxels, {} semantic entries ({} {}-d) in {} world cells of the "
+             "global index, {:.1f} MB file\n",
+             opt.output, saved.submaps.size(), saved.occupied_voxels, saved.semantic_voxels, opt.precision,
+             map.params().semantic.dim, map.num_index_cells(), saved.file_bytes / 1e6);
 }
 
 void add(CLI::App& root) {
@@ -130,7 +189,9 @@ void add(CLI::App& root) {
                                   "Build a semantic voxel map from a dataset directory (RELLIS-3D or KITTI layout) "
                                   "with its ground-truth poses, and save it as one map file");
   cmd->add_option("dataset", opt->dataset, "Sequence directory")->required()->check(CLI::ExistingDirectory);
-  cmd->add_option("-o,--output", opt->output, "Map file to write (replaced atomically)")->required();
+  cmd->add_option("-o,--output", opt->output,
+                  "Map file to write: started anew (an old file is replaced atomically) and grown by each finished "
+                  "submap, so a killed run leaves every submap finished before the kill (see --resume)")->required();
   cmd->add_option("--features", opt->features,
                   "Where image features come from: 'simulated' (SIMULATED from the 2D label images, no network), "
                   "'model' (a TorchScript dense encoder, --model), 'precomputed' (features/<image>.npy, C x H x W), "
@@ -185,19 +246,48 @@ void add(CLI::App& root) {
                   "Simulated share of confusions that pick a class of the same coarse class")
       ->capture_default_str()
       ->check(finite_range(0, 1));
-  cmd->add_option("--queue", opt->pipeline.queue_capacity, "Inference queue length")
+  cmd->add_option("--queue", opt->pipeline.queue_capacity,
+                  "Most scans and images (with their feature maps) waiting in the mapper at once")
       ->capture_default_str()
       ->check(integer_range(1, bounds::kMaxQueue));
   cmd->add_option("--max-image-pixels", opt->max_image_pixels,
                   "Refuse camera and label images larger than this (from their headers, before decoding)")
       ->capture_default_str()
       ->check(finite_range(1, bounds::kMaxImagePixels));
+  cmd->add_option("--queue-mb", opt->queue_mb, "Most megabytes of scans and feature maps waiting in the mapper")
+      ->capture_default_str()
+      ->check(finite_range(1, 1e6));
   cmd->add_flag("--realtime", opt->realtime,
-                "Drop (and count) frames that find the inference queue full, as on a robot; default: replay every frame");
+                "Replay at sensor rate on the wall clock (scan and image stamps); frames that find the mapper's queue "
+                "full are dropped and counted, and the report says how many it kept up with. Default: every frame, "
+                "as fast as it goes");
+  cmd->add_option("--poses", opt->poses,
+                  "LiDAR poses in the world from a trajectory file instead of the sequence's ground truth: KITTI "
+                  "(3x4 rows, row i = scan i) or TUM (stamp tx ty tz qx qy qz qw)")
+      ->check(CLI::ExistingFile);
+  cmd->add_option("--pose-format", opt->pose_format, "Format of --poses: auto (from the first row), kitti or tum")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"auto", "kitti", "tum"}));
+  cmd->add_flag("--resume", opt->resume,
+                "Continue the map file -o that a killed run left (it holds every submap finished before the kill): "
+                "mapping restarts after its last finished submap, with the same options");
+  cmd->add_flag("--no-checkpoints", opt->no_checkpoints,
+                "Write the map file once at the end (atomically) instead of submap by submap while mapping");
+  cmd->add_option("--unload-radius", opt->pipeline.unload_radius,
+                  "Finished submaps whose anchor is farther than this (m) from the vehicle leave memory (they are in "
+                  "the map file) and come back when it returns (0: keep all in memory)")
+      ->capture_default_str()
+      ->check(finite_range(0, 1e7));
   add_colour_basis_option(cmd, opt->colour_basis);
   cmd->parse_complete_callback([opt] {
     check_map_options(opt->pipeline, opt->features, opt->feature_size, opt->precision, opt->distortion, opt->output);
     check_colour_basis_option(opt->colour_basis, opt->pipeline.map.semantic.dim);
+    if (opt->resume && opt->no_checkpoints) usage_error("--resume continues a map file written submap by submap: it "
+                                                        "cannot go with --no-checkpoints");
+    if (opt->resume && !std::filesystem::is_regular_file(opt->output))
+      usage_error(fmt::format("--resume: there is no map file {} to continue", opt->output));
+    if (opt->pipeline.unload_radius > 0 && opt->no_checkpoints)
+      usage_error("--unload-radius needs the map file written while mapping: it cannot go with --no-checkpoints");
   });
   cmd->callback([opt, cmd] { run(*opt, effective_config(*cmd)); });
 }

@@ -21,6 +21,14 @@ Trajectory::Trajectory(std::vector<double> stamps, std::vector<Pose> poses)
   }
 }
 
+void Trajectory::append(double stamp, const Pose& pose) {
+  if (!std::isfinite(stamp)) throw Error("trajectory stamp is not finite");
+  if (!stamps_.empty() && !(stamp > stamps_.back()))
+    throw Error(fmt::format("trajectory stamp {:.6f} is not after the last one ({:.6f})", stamp, stamps_.back()));
+  stamps_.push_back(stamp);
+  poses_.push_back(pose);
+}
+
 std::optional<Pose> Trajectory::at(double t) const {
   if (stamps_.empty() || !(t >= stamps_.front()) || !(t <= stamps_.back())) return std::nullopt;
   const auto it = std::lower_bound(stamps_.begin(), stamps_.end(), t);

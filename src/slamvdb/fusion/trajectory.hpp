@@ -14,6 +14,10 @@ class Trajectory {
   // Throws Error if sizes differ or stamps are not strictly increasing (names the offending index).
   Trajectory(std::vector<double> stamps, std::vector<Pose> poses);
 
+  // Extends the trajectory as poses arrive (the streaming mapper). Throws Error for a stamp that
+  // is not finite or not after the last one; the trajectory is then unchanged.
+  void append(double stamp, const Pose& pose);
+
   // Pose at time t, interpolated between the two nearest poses; nullopt outside [front, back].
   std::optional<Pose> at(double t) const;
   bool empty() const { return stamps_.empty(); }

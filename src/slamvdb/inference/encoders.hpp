@@ -23,6 +23,9 @@ class DenseImageEncoder {
  public:
   virtual ~DenseImageEncoder() = default;
   virtual FeatureMap encode(const ImageFrame& frame) = 0;
+  // The same into `out`, whose buffer an encoder may reuse: a 512 x 192 x 128 map is 50 MB, and
+  // allocating it afresh for every frame faults in (and zeroes) every page of it.
+  virtual void encode_into(const ImageFrame& frame, FeatureMap& out) { out = encode(frame); }
   virtual int dim() const = 0;
   virtual std::string model_id() const = 0;
 };

@@ -108,6 +108,12 @@ SimulatedDenseEncoder::SimulatedDenseEncoder(SimulatedEncoderConfig config)
 }
 
 FeatureMap SimulatedDenseEncoder::encode(const ImageFrame& frame) {
+  FeatureMap out;
+  encode_into(frame, out);
+  return out;
+}
+
+void SimulatedDenseEncoder::encode_into(const ImageFrame& frame, FeatureMap& out) {
   const std::string where = fmt::format("frame '{}' (stamp {:.6f})", frame.source, frame.stamp);
   if (frame.labels.empty())
     throw Error(where + " has no 2D label image: the simulated dense encoder reads labels, not pixels");
@@ -181,7 +187,8 @@ FeatureMap SimulatedDenseEncoder::encode(const ImageFrame& frame) {
 
   // One pass per pixel: the (mostly single) weighted prototype plus a bank row, cyclically shifted
   // and signed per pixel (a shifted row of iid Gaussians is again one), then normalised.
-  FeatureMap out(D, H, W);
+  out.dim = D, out.height = H, out.width = W;
+  out.data.resize(static_cast<std::size_t>(D) * H * W);  // every value is written below
   tbb::parallel_for(0, H, [&](int y) {
     for (int x = 0; x < W; ++x) {
       const std::size_t i = static_cast<std::size_t>(y) * W + x;
@@ -200,7 +207,6 @@ FeatureMap SimulatedDenseEncoder::encode(const ImageFrame& frame) {
       if (norm > 0.f) f *= 1.f / norm;
     }
   });
-  return out;
 }
 
 SimulatedTextEncoder::SimulatedTextEncoder(SimulatedEncoderConfig config) : config_(config) {

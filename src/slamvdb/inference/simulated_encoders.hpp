@@ -52,6 +52,7 @@ class SimulatedDenseEncoder : public DenseImageEncoder {
  public:
   explicit SimulatedDenseEncoder(SimulatedEncoderConfig config = {});
   FeatureMap encode(const ImageFrame& frame) override;
+  void encode_into(const ImageFrame& frame, FeatureMap& out) override;
   int dim() const override { return config_.dim; }
   std::string model_id() const override { return simulated_model_id(config_); }
   const SimulatedEncoderConfig& config() const { return config_; }

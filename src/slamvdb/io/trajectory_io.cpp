@@ -73,7 +73,7 @@ void write_trajectory(const std::filesystem::path& file, const std::vector<doubl
     } else {
       const Eigen::Quaterniond q(T.linear());
       const Vec3d t = T.translation();
-      out << fmt::format("{:.6f} {:.9f} {:.9f} {:.9f} {:.9f} {:.9f} {:.9f} {:.9f}\n", stamps[i], t.x(), t.y(), t.z(),
+      out << fmt::format("{:.9f} {:.9f} {:.9f} {:.9f} {:.9f} {:.9f} {:.9f} {:.9f}\n", stamps[i], t.x(), t.y(), t.z(),
                          q.x(), q.y(), q.z(), q.w());
     }
   }

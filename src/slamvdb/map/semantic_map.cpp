@@ -215,6 +215,15 @@ void SemanticMap::add_finished_submap(SubmapInfo info, VoxelMap voxels) {
   next_id_ = std::max(next_id_, info.id + 1);
 }
 
+void SemanticMap::remove_finished_submap(int id) {
+  WriteLock lock(mutex_);
+  const uint32_t slot = slot_of(id);
+  if (!slots_[slot]->finished()) throw Error(fmt::format("submap {} is still being written; it cannot leave memory", id));
+  index_.remove_submap(slot);
+  slots_[slot].reset();
+  ids_.erase(id);
+}
+
 std::vector<SubmapInfo> SemanticMap::submaps() const {
   ReadLock lock(mutex_);
   std::vector<SubmapInfo> out;

@@ -83,6 +83,10 @@ class SemanticMap {
   // ---- building from parts (map loading) ----
   // Adds a finished submap; throws Error if its id exists or its parameters differ from the map's.
   void add_finished_submap(SubmapInfo info, VoxelMap voxels);
+  // Lets a finished submap leave memory (and the index); the caller keeps it elsewhere (a
+  // SubmapStore) and may add it back with add_finished_submap. Its id is never given out again.
+  // Throws Error for an unknown id or the active submap.
+  void remove_finished_submap(int id);
 
   // ---- reading (any thread) ----
   std::vector<SubmapInfo> submaps() const;   // by id

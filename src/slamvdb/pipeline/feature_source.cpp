@@ -7,10 +7,16 @@
 namespace slamvdb {
 
 FeatureMap EncoderFeatureSource::features_for(const ImageRecord& record) {
+  FeatureMap out;
+  features_into(record, out);
+  return out;
+}
+
+void EncoderFeatureSource::features_into(const ImageRecord& record, FeatureMap& out) {
   const bool rgb = input_ == Input::kRgb;
   if ((rgb ? record.rgb : record.labels).empty())
     throw Error("image at stamp " + std::to_string(record.stamp) + " has no " + (rgb ? "RGB file" : "label image"));
-  return encoder_->encode(load_image_frame(record, rgb, !rgb));
+  encoder_->encode_into(load_image_frame(record, rgb, !rgb), out);
 }
 
 FeatureMap NpyFeatureSource::features_for(const ImageRecord& record) {

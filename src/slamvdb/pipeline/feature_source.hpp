@@ -13,6 +13,8 @@ class FeatureSource {
  public:
   virtual ~FeatureSource() = default;
   virtual FeatureMap features_for(const ImageRecord& record) = 0;  // throws Error
+  // The same into `out`, reusing its buffer where the source can (DenseImageEncoder::encode_into).
+  virtual void features_into(const ImageRecord& record, FeatureMap& out) { out = features_for(record); }
   virtual std::string model_id() const = 0;
 };
 
@@ -23,6 +25,7 @@ class EncoderFeatureSource : public FeatureSource {
   EncoderFeatureSource(std::unique_ptr<DenseImageEncoder> encoder, Input input)
       : encoder_(std::move(encoder)), input_(input) {}
   FeatureMap features_for(const ImageRecord& record) override;
+  void features_into(const ImageRecord& record, FeatureMap& out) override;
   std::string model_id() const override { return encoder_->model_id(); }
 
  private:

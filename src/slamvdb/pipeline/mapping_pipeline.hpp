@@ -1,37 +1,30 @@
 #pragma once
-// Replays a sequence into a semantic map: scans -> occupancy, images -> features -> fusion, with
-// the poses the sequence provides (ground truth; a tracker can stand in later).
+// Replays a recorded sequence through the streaming Mapper: scans, images and poses are given to
+// it in time order, as a robot would deliver them (a pose no earlier than the sensor data it
+// covers), from the sequence's ground truth or another pose source.
 #include <functional>
 #include <string>
 #include <vector>
 
-#include "slamvdb/fusion/projective_fusion.hpp"
 #include "slamvdb/io/dataset.hpp"
-#include "slamvdb/map/semantic_map.hpp"
-#include "slamvdb/pipeline/inference_worker.hpp"
+#include "slamvdb/pipeline/mapper.hpp"
 
 namespace slamvdb {
 
 struct PipelineOptions {
   MapParams map;
   FusionParams fusion;
-  std::size_t queue_capacity = 4;
+  std::size_t queue_capacity = 16;                   // items (MapperOptions::max_queued_items)
+  std::size_t queue_bytes = std::size_t{1} << 30;    // bytes (MapperOptions::max_queued_bytes)
   QueuePolicy policy = QueuePolicy::kReplay;
+  // Give every frame at its time stamp on the wall clock (sensor rate) instead of as fast as the
+  // mapper takes it; frames that find the queue full are then dropped and counted.
+  bool realtime = false;
   std::size_t max_scans = 0;  // 0: all
-};
-
-struct PipelineReport {
-  std::size_t scans_total = 0, scans_integrated = 0, scans_failed = 0, scans_without_pose = 0;
-  std::size_t images_total = 0, images_fused = 0, images_failed = 0, images_outside_pose_range = 0;
-  std::size_t images_before_first_scan = 0;
-  std::size_t submaps = 0;
-  ScanIntegrationStats points;
-  InferenceStats inference;
-  FusionStats fusion;  // summed over images
-  double seconds_scans = 0, seconds_fusion = 0, seconds_total = 0;
-  std::vector<std::string> problems;  // one line per skipped scan or image, with the reason
-
-  std::string summary() const;
+  // T_world_lidar (e.g. a pose file); null: the sequence's ground truth.
+  const Trajectory* poses = nullptr;
+  SubmapStore* store = nullptr;  // where finished submaps go as they finish (may be null)
+  double unload_radius = 0;      // MapperOptions::unload_radius
 };
 
 using ProgressFn = std::function<void(std::size_t done, std::size_t total)>;
@@ -41,5 +34,9 @@ using ProgressFn = std::function<void(std::size_t done, std::size_t total)>;
 // and listed in the report.
 SemanticMap build_map(const Sequence& sequence, FeatureSource* features, const PipelineOptions& options,
                       PipelineReport& report, const ProgressFn& progress = {});
+// Continues `start` (a map a killed run left, loaded back): what it holds up to the end of its
+// last submap is skipped, the rest mapped as build_map would.
+SemanticMap continue_map(SemanticMap start, const Sequence& sequence, FeatureSource* features,
+                         const PipelineOptions& options, PipelineReport& report, const ProgressFn& progress = {});
 
 }  // namespace slamvdb

@@ -121,28 +121,6 @@ TEST_F(MappingPipelineTest, WrongFeatureDimensionIsAClearError) {
   }
 }
 
-// A worker slower than the frames: with the live policy, frames that find the queue full are
-// dropped and counted, never silently lost.
-TEST(InferenceWorker, LivePolicyCountsDroppedFrames) {
-  struct SlowSource : FeatureSource {
-    FeatureMap features_for(const ImageRecord&) override {
-      std::this_thread::sleep_for(std::chrono::milliseconds(30));
-      return FeatureMap(4, 2, 2);
-    }
-    std::string model_id() const override { return "slow"; }
-  } slow;
-  InferenceWorker worker(slow, 2);
-  std::size_t accepted = 0, dropped = 0;
-  for (int i = 0; i < 10; ++i) {
-    if (worker.try_submit({static_cast<std::size_t>(i), {}, Pose::Identity()})) ++accepted;
-    else worker.count_dropped(), ++dropped;
-  }
-  const auto results = worker.wait_all();
-  EXPECT_GT(dropped, 0u);
-  EXPECT_EQ(results.size(), accepted);
-  EXPECT_EQ(worker.stats().dropped_queue_full, dropped);
-  EXPECT_EQ(worker.stats().completed, accepted);
-}
 
 }  // namespace
 }  // namespace slamvdb

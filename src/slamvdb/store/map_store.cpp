@@ -50,10 +50,29 @@ void write_database(const fs::path& file, const SemanticMap& map) {
 
 std::unique_ptr<Database> open_reader(const fs::path& path) {
   auto db = std::make_unique<Database>(path, SQLITE_OPEN_READONLY | SQLITE_OPEN_NOMUTEX);
+  // A map file being written (MapFileWriter) is locked while a submap is committed: wait for it.
+  sqlite3_busy_timeout(db->handle(), 10000);
   // Memory-mapped reads: blobs are read where the page cache holds them instead of being copied
   // through SQLite's own cache first.
   db->exec("PRAGMA mmap_size = 1099511627776");
   return db;
+}
+
+// A map file whose writer (MapFileWriter) was killed inside a transaction has a hot journal beside
+// it. SQLite rolls that back on the first read through a connection that may write; a read-only
+// connection may not, so one is opened for that first.
+void recover_interrupted_write(const fs::path& path) {
+  std::error_code ec;
+  if (!fs::exists(fs::path(path.string() + "-journal"), ec)) return;
+  try {
+    Database db(path, SQLITE_OPEN_READWRITE | SQLITE_OPEN_NOMUTEX);
+    sqlite3_busy_timeout(db.handle(), 10000);
+    db.exec("SELECT count(*) FROM sqlite_master");
+    db.close();
+  } catch (const Error& e) {
+    throw Error(fmt::format("its last write was interrupted and rolling it back (from {}-journal) needs write "
+                            "access: {}", path.filename().string(), e.what()));
+  }
 }
 
 std::unique_ptr<Database> open_map(const fs::path& path) {
@@ -61,6 +80,7 @@ std::unique_ptr<Database> open_map(const fs::path& path) {
   const fs::file_status status = fs::status(path, ec);
   if (!fs::exists(status)) throw Error("no such file");
   if (!fs::is_regular_file(status)) throw Error("not a regular file");
+  recover_interrupted_write(path);
   auto db = open_reader(path);
   const int64_t application_id = pragma_value(*db, "application_id");  // a foreign file fails here
   if (application_id != kMapApplicationId)

@@ -12,6 +12,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iterator>
+#include <optional>
 #include <string>
 #include <thread>
 
@@ -76,6 +77,57 @@ inline std::string shell_quote(const std::string& text) {
   for (char c : text) out += c == '\'' ? std::string("'\\''") : std::string(1, c);
   return out + "'";
 }
+
+// A command running in the background (`/bin/sh -c "exec ..."`, output to `log`), for tests that
+// watch it work and kill it at a chosen moment.
+class ChildProcess {
+ public:
+  ChildProcess(const std::string& command, const std::filesystem::path& log) {
+    posix_spawn_file_actions_t actions;
+    posix_spawn_file_actions_init(&actions);
+    posix_spawn_file_actions_addopen(&actions, STDOUT_FILENO, log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0600);
+    posix_spawn_file_actions_adddup2(&actions, STDOUT_FILENO, STDERR_FILENO);
+    posix_spawn_file_actions_addopen(&actions, STDIN_FILENO, "/dev/null", O_RDONLY, 0);
+    const std::string exec_command = "exec " + command;
+    const char* argv[] = {"/bin/sh", "-c", exec_command.c_str(), nullptr};
+    if (posix_spawn(&pid_, "/bin/sh", &actions, nullptr, const_cast<char**>(argv), environ) != 0) pid_ = -1;
+    posix_spawn_file_actions_destroy(&actions);
+  }
+  ChildProcess(const ChildProcess&) = delete;
+  ChildProcess& operator=(const ChildProcess&) = delete;
+  ~ChildProcess() {
+    if (pid_ > 0 && !status_) kill_now();
+  }
+  bool started() const { return pid_ > 0; }
+  // False once it has ended (its status is then kept).
+  bool running() {
+    if (pid_ <= 0 || status_) return false;
+    int status = 0;
+    if (::waitpid(pid_, &status, WNOHANG) == pid_) status_ = status;
+    return !status_;
+  }
+  // SIGKILL, then waits; true when the signal ended it (false: it had already ended by itself).
+  bool kill_now() {
+    if (!running()) return false;
+    ::kill(pid_, SIGKILL);
+    int status = 0;
+    ::waitpid(pid_, &status, 0);
+    status_ = status;
+    return WIFSIGNALED(status) && WTERMSIG(status) == SIGKILL;
+  }
+  int wait_exit_code() {
+    if (running()) {
+      int status = 0;
+      ::waitpid(pid_, &status, 0);
+      status_ = status;
+    }
+    return status_ && WIFEXITED(*status_) ? WEXITSTATUS(*status_) : -1;
+  }
+
+ private:
+  pid_t pid_ = -1;
+  std::optional<int> status_;
+};
 
 #ifdef SLAMVDB_CLI_PATH
 // The project's CLI with `args` (shell words, already quoted), as run_command runs it.

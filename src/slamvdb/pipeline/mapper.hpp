@@ -1,0 +1,120 @@
+#pragma once
+// The streaming mapper (paper section 6.2.1, Figure 6.1). Scans, images (or finished feature maps)
+// and poses arrive asynchronously, from any threads, at their own rates. The mapper integrates
+// every scan and fuses every image as soon as the trajectory, which grows as poses arrive, covers
+// its stamp, strictly in stamp order (a scan before an image of the same stamp), so a replay gives
+// the same map whatever the timing. Loop-closure corrections and merges may come at any time.
+//
+// Threads: the callers'; one mapping thread (scans, fusion, checkpoints); one inference thread
+// when images come with a FeatureSource. Queued items (scans, images and their feature maps) are
+// bounded in count and in bytes. Every item is used or counted under the reason it was not: queue
+// full (kDropWhenFull), no pose ever covering its stamp, a stamp not after the previous one of its
+// stream (out of order, duplicate), already in the map a run resumes.
+//
+// With a SubmapStore, each finished submap is handed to it at once (a map file that then holds it
+// whatever happens later), and finished submaps farther than unload_radius from the robot leave
+// memory and are read back when the robot comes near again or a correction or merge needs them.
+#include <condition_variable>
+#include <deque>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <set>
+#include <thread>
+#include <vector>
+
+#include "slamvdb/fusion/camera_model.hpp"
+#include "slamvdb/fusion/projective_fusion.hpp"
+#include "slamvdb/fusion/trajectory.hpp"
+#include "slamvdb/map/semantic_map.hpp"
+#include "slamvdb/map/submap_store.hpp"
+#include "slamvdb/pipeline/feature_source.hpp"
+#include "slamvdb/pipeline/mapping_report.hpp"
+
+namespace slamvdb {
+
+struct MapperOptions {
+  MapParams map;
+  FusionParams fusion;
+  CameraModel camera;                       // intrinsics at full image resolution
+  Pose T_lidar_camera = Pose::Identity();   // the camera in the LiDAR frame (poses are the LiDAR's)
+  QueuePolicy policy = QueuePolicy::kReplay;
+  std::size_t max_queued_items = 16;                  // scans + images waiting, feature maps included
+  std::size_t max_queued_bytes = std::size_t{1} << 30;  // their points and feature maps
+  // Finished submaps whose anchor is farther than this from the robot leave memory (0: never);
+  // they come back within 0.8 of it. Needs a SubmapStore.
+  double unload_radius = 0;
+};
+
+class Mapper {
+ public:
+  // `map` is where mapping starts: empty, or a map loaded to resume a run (items up to the end of
+  // its last submap's time range are then counted as resumed and skipped). `features` (images by
+  // record) and `store` may be null; both must outlive the mapper.
+  Mapper(const MapperOptions& options, SemanticMap map, FeatureSource* features = nullptr,
+         SubmapStore* store = nullptr);
+  ~Mapper();  // stops the threads; anything not yet processed is discarded
+  Mapper(const Mapper&) = delete;
+  Mapper& operator=(const Mapper&) = delete;
+
+  // ---- input (any thread). False: the item was not taken (counted in the report with why). ----
+  bool add_scan(double stamp, std::vector<Vec3f> points_sensor);
+  bool add_image(const ImageRecord& record);            // features from the FeatureSource
+  bool add_features(double stamp, FeatureMap features);  // features computed elsewhere
+  bool add_pose(double stamp, const Pose& T_world_sensor);  // never waits
+  // An item the caller could not even read (a corrupt scan file, ...): counted as failed.
+  void add_unreadable_scan(const std::string& problem);
+  void add_unreadable_image(const std::string& problem);
+
+  // ---- loop closure (any thread) ----
+  void correct_submaps(const std::map<int, Pose>& T_world_submap);  // throws Error like SemanticMap
+  MergeReport merge_submaps(int target, int source, const MergeOptions& options = {});
+
+  // Processes what can be, counts what no pose covers, finishes the active submap (handing it to
+  // the store), stops the threads and returns the map (the submaps still in memory).
+  SemanticMap finish();
+  PipelineReport report() const;  // a snapshot
+  // Readers may use the map while mapping goes on (SemanticMap's locks make that safe).
+  const SemanticMap& map() const { return map_; }
+  // The first error of the mapping thread (a store that cannot write, ...), rethrown by finish().
+  bool failed() const;
+
+ private:
+  struct Item;
+  bool admit(std::unique_lock<std::mutex>& lock, std::unique_ptr<Item> item);
+  void mapping_loop();
+  void inference_loop();
+  Item* next_item() const;
+  void process(Item& item, const Pose& T_world_lidar);
+  void after_scan(const Pose& T_world_lidar, std::optional<int> finished_id);
+  void reload_submap(int id);  // store_mutex_ held
+
+  MapperOptions options_;
+  SemanticMap map_;
+  FeatureSource* features_;
+  SubmapStore* store_;
+  ProjectiveFusion fusion_;
+  double resume_after_ = -std::numeric_limits<double>::infinity();
+
+  mutable std::mutex mutex_;  // everything below up to store_mutex_
+  std::condition_variable work_cv_, room_cv_;
+  std::deque<std::unique_ptr<Item>> scans_, images_;
+  std::size_t queued_bytes_ = 0;
+  Trajectory trajectory_;
+  double last_scan_stamp_, last_image_stamp_;
+  bool closing_ = false, stopping_ = false, waiting_for_pose_ = false;
+  PipelineReport report_;
+  std::exception_ptr error_;
+  // Feature maps already fused, whose buffers the inference thread fills again (at most
+  // kSpareFeatureMaps; they count against max_queued_bytes like queued ones).
+  static constexpr std::size_t kSpareFeatureMaps = 2;
+  std::vector<FeatureMap> spare_features_;
+
+  std::mutex store_mutex_;  // the store and the submaps that left memory
+  std::map<int, SubmapInfo> unloaded_;
+
+  std::thread mapping_thread_, inference_thread_;
+};
+
+}  // namespace slamvdb

@@ -1,0 +1,239 @@
+// The streaming mapper: asynchronous input in any arrival order, counted drops, bounded queues.
+#include "slamvdb/pipeline/mapper.hpp"
+
+#include <gtest/gtest.h>
+
+#include <chrono>
+#include <cmath>
+#include <thread>
+
+#include "slamvdb/core/error.hpp"
+#include "slamvdb/inference/simulated_encoders.hpp"
+#include "slamvdb/io/scan_io.hpp"
+#include "slamvdb/io/sequence_reader.hpp"
+#include "slamvdb/testing/map_cells.hpp"
+#include "slamvdb/testing/pipeline_fixture.hpp"
+
+namespace slamvdb {
+namespace {
+
+using testing::MappingPipelineTest;
+
+void expect_same_cells(const SemanticMap& a, const SemanticMap& b) {
+  const auto ca = testing::index_cells(a), cb = testing::index_cells(b);
+  ASSERT_EQ(ca.size(), cb.size());
+  ASSERT_GT(ca.size(), 0u);
+  for (auto ia = ca.begin(), ib = cb.begin(); ia != ca.end(); ++ia, ++ib) {
+    ASSERT_EQ(ia->first, ib->first);
+    ASSERT_EQ(ia->second.count, ib->second.count);
+    ASSERT_EQ(ia->second.embedding, ib->second.embedding);
+  }
+  EXPECT_EQ(a.num_occupied_voxels(), b.num_occupied_voxels());
+  EXPECT_EQ(a.num_known_voxels(), b.num_known_voxels());
+}
+
+MapperOptions mapper_options(const Sequence& seq, const PipelineOptions& o) {
+  MapperOptions m;
+  m.map = o.map;
+  m.fusion = o.fusion;
+  m.camera = seq.camera;
+  m.T_lidar_camera = seq.T_lidar_camera;
+  return m;
+}
+
+// A robot's poses often come late (odometry, then loop closure): every scan and image arrives
+// first, from one thread, the poses later from another. Nothing is dropped for arriving early,
+// and the map is the one a time-ordered replay gives.
+TEST_F(MappingPipelineTest, MapperFusesImagesThatArriveBeforeTheirPoses) {
+  const Sequence seq = read_sequence(dir_);
+  PipelineOptions o = options();
+  o.max_scans = 30;
+  EncoderFeatureSource in_order_source(std::make_unique<SimulatedDenseEncoder>(encoder_config()),
+                                       EncoderFeatureSource::Input::kLabels);
+  PipelineReport in_order;
+  const SemanticMap reference = build_map(seq, &in_order_source, o, in_order);
+  ASSERT_GT(in_order.images_fused, 5u);
+
+  EncoderFeatureSource source(std::make_unique<SimulatedDenseEncoder>(encoder_config()),
+                              EncoderFeatureSource::Input::kLabels);
+  MapperOptions m = mapper_options(seq, o);
+  m.max_queued_items = 1000;
+  Mapper mapper(m, SemanticMap(o.map), &source);
+  const double last_scan = seq.scans[29].stamp;
+  for (std::size_t i = 0; i < 30; ++i) ASSERT_TRUE(mapper.add_scan(seq.scans[i].stamp, read_scan(seq.scans[i]).points));
+  for (const ImageRecord& image : seq.images)
+    if (image.stamp <= last_scan) {
+      ASSERT_TRUE(mapper.add_image(image));
+    }
+  std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  EXPECT_EQ(mapper.report().scans_integrated, 0u);  // nothing can be placed yet
+  std::thread poses([&] {
+    for (std::size_t i = 0; i < seq.poses.size(); ++i) mapper.add_pose(seq.poses.stamps()[i], seq.poses.poses()[i]);
+  });
+  poses.join();
+  const SemanticMap map = mapper.finish();
+  const PipelineReport r = mapper.report();
+  EXPECT_EQ(r.scans_integrated, 30u);
+  EXPECT_EQ(r.images_fused, in_order.images_fused);
+  EXPECT_EQ(r.images_outside_pose_range, in_order.images_outside_pose_range);
+  EXPECT_EQ(r.sensor_items_dropped(), in_order.sensor_items_dropped());
+  expect_same_cells(map, reference);
+}
+
+// A wall 6 m ahead of a camera that looks along the sensor's z axis (T_lidar_camera = identity).
+std::vector<Vec3f> wall_ahead() {
+  std::vector<Vec3f> points;
+  for (int x = -20; x <= 20; ++x)
+    for (int y = -10; y <= 10; ++y) points.emplace_back(0.1f * x, 0.1f * y, 6.0f);
+  return points;
+}
+
+CameraModel small_camera() {
+  CameraModel c;
+  c.width = 10, c.height = 8, c.fx = 8, c.fy = 8, c.cx = 5, c.cy = 4;
+  return c;
+}
+
+FeatureMap unit_features(int dim, float value = 1.0f) {
+  FeatureMap f(dim, 8, 10);
+  for (float& v : f.data) v = value / std::sqrt(static_cast<float>(dim));
+  return f;
+}
+
+Pose at_x(double x) {
+  Pose T = Pose::Identity();
+  T.translation() = Vec3d(x, 0, 0);
+  return T;
+}
+
+// Out-of-order and duplicate stamps, poses that are no rigid transform and items no pose ever
+// covers are counted by reason; none of them stops the mapper.
+TEST(Mapper, CountsOutOfOrderDuplicateAndUncoveredInputByReason) {
+  MapperOptions m;
+  m.map.semantic.dim = 8;
+  m.camera = small_camera();
+  Mapper mapper(m, SemanticMap(m.map));
+  EXPECT_TRUE(mapper.add_pose(0.0, at_x(0)));
+  EXPECT_TRUE(mapper.add_pose(1.0, at_x(0.1)));
+  EXPECT_FALSE(mapper.add_pose(1.0, at_x(0.1)));  // duplicate
+  EXPECT_FALSE(mapper.add_pose(0.5, at_x(0.1)));  // out of order
+  Pose scaled = at_x(0);
+  scaled.linear() *= 2.0;
+  EXPECT_FALSE(mapper.add_pose(3.0, scaled));  // not rigid
+  EXPECT_FALSE(mapper.add_pose(std::nan(""), at_x(0)));
+  EXPECT_TRUE(mapper.add_pose(2.0, at_x(0.2)));
+
+  EXPECT_TRUE(mapper.add_features(-1.0, unit_features(8)));  // before the first pose: never covered
+  EXPECT_TRUE(mapper.add_scan(0.5, wall_ahead()));
+  EXPECT_FALSE(mapper.add_scan(0.5, wall_ahead()));  // duplicate
+  EXPECT_FALSE(mapper.add_scan(0.25, wall_ahead()));  // out of order
+  EXPECT_TRUE(mapper.add_features(0.75, unit_features(8)));
+  EXPECT_FALSE(mapper.add_features(0.75, unit_features(8)));
+  EXPECT_FALSE(mapper.add_features(0.6, unit_features(8)));
+  FeatureMap poisoned = unit_features(8, std::nanf(""));
+  EXPECT_TRUE(mapper.add_features(0.9, std::move(poisoned)));  // refused whole by fusion, counted
+  EXPECT_TRUE(mapper.add_scan(1.5, wall_ahead()));
+  EXPECT_TRUE(mapper.add_scan(7.0, wall_ahead()));  // after the last pose: never covered
+  const SemanticMap map = mapper.finish();
+  const PipelineReport r = mapper.report();
+  EXPECT_EQ(r.poses_total, 7u);
+  EXPECT_EQ(r.poses_duplicate, 1u);
+  EXPECT_EQ(r.poses_out_of_order, 1u);
+  EXPECT_EQ(r.poses_invalid, 2u);
+  EXPECT_EQ(r.scans_total, 5u);
+  EXPECT_EQ(r.scans_integrated, 2u);
+  EXPECT_EQ(r.scans_duplicate, 1u);
+  EXPECT_EQ(r.scans_out_of_order, 1u);
+  EXPECT_EQ(r.scans_without_pose, 1u);
+  EXPECT_EQ(r.images_total, 5u);
+  EXPECT_EQ(r.images_outside_pose_range, 1u);
+  EXPECT_EQ(r.images_duplicate, 1u);
+  EXPECT_EQ(r.images_out_of_order, 1u);
+  EXPECT_EQ(r.images_fused, 1u);
+  EXPECT_EQ(r.images_failed, 1u);
+  EXPECT_GT(map.num_semantic_voxels(), 0u);
+  EXPECT_EQ(r.problems.size(), 11u);  // one line per item not used
+}
+
+// A feature source slower than the frames with the live policy: frames that find the queue full
+// are dropped and counted (the caller never waits); every frame is accounted for.
+TEST(Mapper, LivePolicyDropsAndCountsFramesThatFindTheQueueFull) {
+  struct SlowSource : FeatureSource {
+    FeatureMap features_for(const ImageRecord&) override {
+      std::this_thread::sleep_for(std::chrono::milliseconds(30));
+      return unit_features(8);
+    }
+    std::string model_id() const override { return "slow"; }
+  } slow;
+  MapperOptions m;
+  m.map.semantic.dim = 8;
+  m.camera = small_camera();
+  m.policy = QueuePolicy::kDropWhenFull;
+  m.max_queued_items = 2;
+  Mapper mapper(m, SemanticMap(m.map), &slow);
+  mapper.add_pose(0.0, at_x(0));
+  mapper.add_pose(100.0, at_x(1));
+  std::size_t taken = 0;
+  const auto t0 = std::chrono::steady_clock::now();
+  for (int i = 1; i <= 12; ++i) {
+    ImageRecord image;
+    image.stamp = i;
+    taken += mapper.add_image(image);
+  }
+  EXPECT_LT(std::chrono::steady_clock::now() - t0, std::chrono::milliseconds(200));  // never waited for the network
+  mapper.finish();
+  const PipelineReport r = mapper.report();
+  EXPECT_GT(r.inference.dropped_queue_full, 0u);
+  EXPECT_EQ(r.inference.dropped_queue_full + taken, 12u);
+  EXPECT_EQ(r.images_before_first_scan, taken);  // no scan: nothing to fuse into, counted as such
+}
+
+// The byte bound holds (replay waits for room instead of growing), and a caller that would wait
+// for room while the mapper waits for a pose only that caller can bring gets a counted drop, not a
+// deadlock.
+TEST(Mapper, QueueBytesStayBoundedAndAWaitThatCouldNeverEndIsADrop) {
+  MapperOptions m;
+  m.map.semantic.dim = 8;
+  const std::size_t scan_bytes = wall_ahead().size() * sizeof(Vec3f);
+  m.max_queued_bytes = 3 * scan_bytes;
+  {
+    Mapper mapper(m, SemanticMap(m.map));
+    mapper.add_pose(0.0, at_x(0));
+    mapper.add_pose(100.0, at_x(10));
+    for (int i = 1; i <= 40; ++i) ASSERT_TRUE(mapper.add_scan(i, wall_ahead()));
+    mapper.finish();
+    const PipelineReport r = mapper.report();
+    EXPECT_EQ(r.scans_integrated, 40u);
+    EXPECT_LE(r.peak_queued_bytes, 3 * scan_bytes);
+  }
+  Mapper mapper(m, SemanticMap(m.map));
+  mapper.add_pose(0.0, at_x(0));
+  std::size_t taken = 0;
+  for (int i = 1; i <= 6; ++i) taken += mapper.add_scan(i, wall_ahead());  // no pose covers any yet
+  EXPECT_EQ(taken, 3u);
+  mapper.add_pose(100.0, at_x(10));
+  mapper.finish();
+  const PipelineReport r = mapper.report();
+  EXPECT_EQ(r.scans_queue_full, 3u);
+  EXPECT_EQ(r.scans_integrated, 3u);
+}
+
+TEST(Mapper, FeaturesOfTheWrongDimensionAreAnErrorAtFinish) {
+  MapperOptions m;
+  m.map.semantic.dim = 8;
+  m.camera = small_camera();
+  Mapper mapper(m, SemanticMap(m.map));
+  mapper.add_pose(0.0, at_x(0));
+  mapper.add_pose(2.0, at_x(0));
+  mapper.add_scan(0.5, wall_ahead());
+  mapper.add_features(1.0, unit_features(16));
+  try {
+    mapper.finish();
+    FAIL() << "expected an error";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("16 channels"), std::string::npos) << e.what();
+  }
+}
+
+}  // namespace
+}  // namespace slamvdb
