@@ -113,7 +113,8 @@ void check_resumable(const SemanticMap& map, const MapParams& p, const std::stri
   if (map.info().model_id != model_id)
     throw Error(fmt::format("--resume: {} holds embeddings of '{}', this run's features are '{}'", file,
                             escape_control(map.info().model_id), escape_control(model_id)));
-  if (map.info().source != seq.root.string())
+  std::error_code ec;
+  if (std::filesystem::weakly_canonical(map.info().source, ec) != std::filesystem::weakly_canonical(seq.root, ec))
     throw Error(fmt::format("--resume: {} was made from {}, not {}", file, escape_control(map.info().source),
                             seq.root.string()));
 }

@@ -2,7 +2,10 @@
 
 #include <gtest/gtest.h>
 
+#include <map>
 #include <random>
+
+#include <tbb/task_arena.h>
 #include <set>
 
 #include "slamvdb/core/error.hpp"
@@ -176,6 +179,47 @@ TEST(OccupancyGrid, RejectsInvalidParameters) {
   p = {};
   p.clamp_min = 1.0f;
   EXPECT_THROW(OccupancyGrid{p}, Error);
+}
+
+}  // namespace
+}  // namespace slamvdb
+
+namespace slamvdb {
+namespace {
+
+// Rays are cast on many threads; a voxel's update must not depend on which thread got there
+// first. Three overlapping scans integrated with 1 and with 8 worker threads (more than the cores,
+// so that threads interleave) give the same log-odds in every voxel, and the same free list.
+TEST(OccupancyGrid, OneAndManyThreadsGiveIdenticalVoxels) {
+  std::mt19937 rng(17);
+  std::uniform_real_distribution<float> angle(-3.14159f, 3.14159f), elevation(-0.4f, 0.3f), range(2.f, 40.f);
+  std::vector<std::vector<Vec3f>> scans(3);
+  for (auto& scan : scans)
+    for (int i = 0; i < 40000; ++i) {
+      const float a = angle(rng), e = elevation(rng), r = range(rng);
+      scan.emplace_back(r * std::cos(e) * std::cos(a), r * std::cos(e) * std::sin(a), r * std::sin(e));
+    }
+  auto integrate = [&](int threads) {
+    OccupancyGrid grid;
+    std::vector<VoxelKey> freed;
+    tbb::task_arena arena(threads);
+    arena.execute([&] {
+      for (std::size_t s = 0; s < scans.size(); ++s) {
+        Pose T = Pose::Identity();
+        T.translation() = Vec3d(0.7 * s, 0.3 * s, 0.0);
+        grid.integrate_scan(scans[s], T, &freed);
+      }
+    });
+    std::map<std::tuple<int, int, int>, float> voxels;
+    grid.for_each_known([&](const VoxelKey& k, float l) { voxels[tup(k)] = l; });
+    std::set<std::tuple<int, int, int>> freed_set;
+    for (const VoxelKey& k : freed) freed_set.insert(tup(k));
+    return std::make_pair(voxels, freed_set);
+  };
+  const auto one = integrate(1), many = integrate(8);
+  ASSERT_GT(one.first.size(), 100000u);
+  EXPECT_EQ(one.first, many.first);
+  EXPECT_EQ(one.second, many.second);
 }
 
 }  // namespace

@@ -74,6 +74,7 @@ bool Mapper::admit(std::unique_lock<std::mutex>& lock, std::unique_ptr<Item> ite
   // this caller could bring: then waiting would never end, and the item is dropped instead.
   if (options_.policy == QueuePolicy::kReplay)
     room_cv_.wait(lock, [&] { return !full() || waiting_for_pose_ || stopping_ || closing_; });
+  if (error_) return false;  // the mapping thread failed: finish() reports why
   if (stopping_ || closing_) throw Error("the mapper has finished; it takes no more input");
   if (full()) {
     ++(scan ? report_.scans_queue_full : report_.inference.dropped_queue_full);
