@@ -79,7 +79,7 @@ nlohmann::json to_json(const std::string& path, const MapFileSummary& s, const s
           {"voxels", {{"known", s.known_voxels}, {"occupied", s.occupied_voxels}, {"semantic", s.semantic_voxels}}},
           {"bytes",
            {{"file", s.file_bytes},
-            {"in_memory_at_save", s.memory_bytes},
+            {"in_memory_at_save", s.memory_bytes ? nlohmann::json(s.memory_bytes) : nlohmann::json()},
             {"occupancy_payload", s.occupancy_payload_bytes},
             {"semantic_payload", s.semantic_payload_bytes},
             {"semantic_payload_per_semantic_voxel", per_voxel(s.semantic_payload_bytes, s.semantic_voxels)},
@@ -124,7 +124,8 @@ void print_text(const std::string& path, const MapFileSummary& s, const std::opt
       start = end + 1;
     }
   }
-  fmt::print("bytes      file {}, in memory {} (when saved)\n", megabytes(s.file_bytes), megabytes(s.memory_bytes));
+  fmt::print("bytes      file {}, in memory {}\n", megabytes(s.file_bytes),
+             s.memory_bytes ? megabytes(s.memory_bytes) + " (when saved)" : "not recorded (submaps left memory while mapping)");
   fmt::print("           on disk: occupancy {}, semantics {}", megabytes(s.occupancy_payload_bytes),
              megabytes(s.semantic_payload_bytes));
   if (s.semantic_voxels)

@@ -174,7 +174,8 @@ void run(Options opt, const std::string& config) {
   final_info.config = config;  // the map says how it was made
   map.set_info(final_info);
   record_colour_basis(map, opt.colour_basis);
-  if (writer) writer->finish(map.info(), map.memory_bytes());
+  // With submaps unloaded, memory holds only part of the map: its size is then not recorded.
+  if (writer) writer->finish(map.info(), report.submaps_unloaded ? 0 : map.memory_bytes());
   else save_map(opt.output, map);
   // What the file holds (with submaps unloaded during the run, more than memory does now).
   const MapFileSummary saved = read_map_summary(opt.output);

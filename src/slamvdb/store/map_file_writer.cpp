@@ -129,7 +129,8 @@ std::pair<SubmapInfo, VoxelMap> MapFileWriter::load(int id) {
 void MapFileWriter::finish(const MapInfo& info, uint64_t memory_bytes) {
   transaction("record the map's info", [&] {
     Meta meta = map_meta(params_, info);
-    meta["memory_bytes"] = std::to_string(memory_bytes);
+    if (memory_bytes) meta["memory_bytes"] = std::to_string(memory_bytes);
+    else db_->exec("DELETE FROM meta WHERE key = 'memory_bytes'");
     Statement sums(*db_,
                    "SELECT (SELECT coalesce(sum(length(log_odds)), 0) FROM occupancy), "
                    "(SELECT coalesce(sum(length(keys) + length(counts) + length(embeddings)), 0) FROM semantics)");

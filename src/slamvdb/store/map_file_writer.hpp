@@ -34,7 +34,8 @@ class MapFileWriter final : public SubmapStore {
   std::pair<SubmapInfo, VoxelMap> load(int id) override;
 
   // Records the final info (e.g. the colour basis fitted at the end, the effective options) and
-  // the totals `slamvdb info` shows; memory_bytes: SemanticMap::memory_bytes() of the whole map.
+  // the totals `slamvdb info` shows; memory_bytes: SemanticMap::memory_bytes() of the whole map
+  // (0: not known, e.g. when submaps left memory while mapping).
   void finish(const MapInfo& info, uint64_t memory_bytes);
   const std::filesystem::path& path() const { return path_; }
   const MapParams& params() const { return params_; }
