@@ -25,19 +25,6 @@ namespace fs = std::filesystem;
 using testing::run_cli;
 using testing::shell_quote;
 
-void expect_same_cells(const SemanticMap& a, const SemanticMap& b) {
-  const auto ca = testing::index_cells(a), cb = testing::index_cells(b);
-  ASSERT_EQ(ca.size(), cb.size());
-  ASSERT_GT(ca.size(), 0u);
-  for (auto ia = ca.begin(), ib = cb.begin(); ia != ca.end(); ++ia, ++ib) {
-    ASSERT_EQ(ia->first, ib->first);
-    ASSERT_EQ(ia->second.count, ib->second.count);
-    ASSERT_EQ(ia->second.embedding, ib->second.embedding);
-  }
-  EXPECT_EQ(a.num_occupied_voxels(), b.num_occupied_voxels());
-  EXPECT_EQ(a.num_known_voxels(), b.num_known_voxels());
-}
-
 MapInfo map_info(const std::string& model_id) {
   MapInfo info;
   info.model_id = model_id;
@@ -92,7 +79,7 @@ TEST_F(Checkpoints, TheGrowingFileIsTheMapAndFarSubmapsMayLeaveMemory) {
   ASSERT_GE(map.num_submaps(), 8u);
   const SemanticMap grown = load_map(file("grown.svdb"));
   EXPECT_EQ(grown.num_submaps(), map.num_submaps());
-  expect_same_cells(grown, map);
+  testing::expect_same_index_cells(grown, map);
 
   auto unload_writer = MapFileWriter::create(file("unloaded.svdb"), o.map, map_info(source->model_id()));
   o.store = unload_writer.get();
@@ -104,7 +91,7 @@ TEST_F(Checkpoints, TheGrowingFileIsTheMapAndFarSubmapsMayLeaveMemory) {
   EXPECT_GT(unload_report.submaps_reloaded, 0u);  // the drive is a loop: its start comes near again
   EXPECT_LT(in_memory.num_submaps(), map.num_submaps());
   EXPECT_EQ(unload_report.submaps, map.num_submaps());
-  expect_same_cells(load_map(file("unloaded.svdb")), map);
+  testing::expect_same_index_cells(load_map(file("unloaded.svdb")), map);
 }
 
 // A correction of a submap that has left memory reaches the file.
@@ -183,7 +170,7 @@ TEST_F(Checkpoints, KilledRunsLeaveLoadableFilesAndResumeGivesTheUninterruptedMa
     EXPECT_NE(resumed.output.find("resuming"), std::string::npos) << resumed.output;
     const SemanticMap continued = load_map(out);
     EXPECT_EQ(continued.num_submaps(), n);
-    expect_same_cells(continued, full);
+    testing::expect_same_index_cells(continued, full);
   }
 }
 

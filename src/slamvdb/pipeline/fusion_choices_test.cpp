@@ -53,18 +53,7 @@ struct DamagingSource : FeatureSource {
   std::string model_id() const override { return inner.model_id(); }
 };
 
-void expect_same_cells(const SemanticMap& a, const SemanticMap& b) {
-  const auto ca = testing::index_cells(a), cb = testing::index_cells(b);
-  ASSERT_EQ(ca.size(), cb.size());
-  for (const auto& [k, cell] : ca) {
-    const auto it = cb.find(k);
-    ASSERT_NE(it, cb.end());
-    ASSERT_EQ(cell.count, it->second.count);
-    ASSERT_EQ(cell.embedding, it->second.embedding);
-    for (const float v : cell.embedding) ASSERT_TRUE(std::isfinite(v));
-  }
-}
-
+// Equal embeddings are finite ones too: NaN equals nothing.
 TEST_F(MappingPipelineTest, APoisonedFrameLeavesEveryVoxelAsWithoutIt) {
   const Sequence seq = read_sequence(dir_);
   EncoderFeatureSource clean(std::make_unique<SimulatedDenseEncoder>(encoder_config()),
@@ -87,7 +76,7 @@ TEST_F(MappingPipelineTest, APoisonedFrameLeavesEveryVoxelAsWithoutIt) {
   EXPECT_EQ(poisoned_report.fusion.frames_refused_invalid, 1u);
   EXPECT_EQ(poisoned_report.images_failed, 1u);
   EXPECT_NE(poisoned_report.summary().find("1 frames refused"), std::string::npos) << poisoned_report.summary();
-  expect_same_cells(poisoned, reference);
+  testing::expect_same_index_cells(poisoned, reference);
 
   // A few pixels of each frame with NaN, Inf or all-zero vectors: those pixels are skipped and
   // counted by reason; the map equals the one where the same pixels carried nothing (zeros).
@@ -111,8 +100,8 @@ TEST_F(MappingPipelineTest, APoisonedFrameLeavesEveryVoxelAsWithoutIt) {
   EXPECT_EQ(r_nan.fusion.pixels_nonfinite, r_inf.fusion.pixels_nonfinite);
   EXPECT_EQ(r_zero.fusion.pixels_zero, r_nan.fusion.pixels_nonfinite);
   EXPECT_EQ(r_nan.fusion.frames_refused_invalid, 0u);
-  expect_same_cells(m_nan, m_zero);
-  expect_same_cells(m_inf, m_zero);
+  testing::expect_same_index_cells(m_nan, m_zero);
+  testing::expect_same_index_cells(m_inf, m_zero);
 }
 
 }  // namespace

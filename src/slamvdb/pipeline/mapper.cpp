@@ -70,16 +70,24 @@ bool Mapper::admit(std::unique_lock<std::mutex>& lock, std::unique_ptr<Item> ite
     const std::size_t count = scans_.size() + images_.size();
     return count + 1 > options_.max_queued_items || (count > 0 && queued_bytes_ + item->bytes > options_.max_queued_bytes);
   };
-  // Replay waits for room, unless the mapper itself waits for a pose that only a later call of
-  // this caller could bring: then waiting would never end, and the item is dropped instead.
-  if (options_.policy == QueuePolicy::kReplay)
-    room_cv_.wait(lock, [&] { return !full() || waiting_for_pose_ || stopping_ || closing_; });
+  // Replay waits for room. While the mapper waits for a pose, only another thread can end the
+  // wait: after max_wait_seconds of that the item is dropped rather than waiting for ever.
+  if (options_.policy == QueuePolicy::kReplay) {
+    const auto limit = std::chrono::duration<double>(options_.max_wait_seconds);
+    auto stalled_since = Clock::now();
+    while (full() && !stopping_ && !closing_) {
+      room_cv_.wait_for(lock, std::chrono::milliseconds(10));
+      if (!waiting_for_pose_) stalled_since = Clock::now();
+      else if (Clock::now() - stalled_since >= limit) break;
+    }
+  }
   if (error_) return false;  // the mapping thread failed: finish() reports why
   if (stopping_ || closing_) throw Error("the mapper has finished; it takes no more input");
   if (full()) {
     ++(scan ? report_.scans_queue_full : report_.inference.dropped_queue_full);
-    report_.add_problem(fmt::format("{}: dropped, the mapper's queue is full ({} items, {:.0f} MB)", item->name(),
-                                    scans_.size() + images_.size(), queued_bytes_ / 1e6));
+    report_.add_problem(fmt::format("{}: dropped, the mapper's queue is full ({} items, {:.0f} MB){}", item->name(),
+                                    scans_.size() + images_.size(), queued_bytes_ / 1e6,
+                                    waiting_for_pose_ ? " and waits for a pose that has not come" : ""));
     return false;
   }
   queued_bytes_ += item->bytes;
@@ -175,9 +183,20 @@ bool Mapper::add_pose(double stamp, const Pose& T_world_sensor) {
     report_.add_problem("pose with a time stamp that is not finite");
     return false;
   }
+  if (poses_ended_) {
+    ++report_.poses_out_of_order;
+    report_.add_problem(fmt::format("pose at {:.6f} s: after the end of the poses was announced", stamp));
+    return false;
+  }
   trajectory_.append(stamp, T_world_sensor);
   work_cv_.notify_all();
   return true;
+}
+
+void Mapper::end_poses() {
+  std::lock_guard lock(mutex_);
+  poses_ended_ = true;
+  work_cv_.notify_all();
 }
 
 void Mapper::add_unreadable_scan(const std::string& problem) {
@@ -260,7 +279,7 @@ void Mapper::mapping_loop() {
       continue;
     }
     const std::optional<Pose> pose = trajectory_.at(next->stamp);
-    if (!pose && !closing_ && (trajectory_.empty() || next->stamp > trajectory_.back_stamp())) {
+    if (!pose && !closing_ && !poses_ended_ && (trajectory_.empty() || next->stamp > trajectory_.back_stamp())) {
       waiting_for_pose_ = true;  // a later pose will cover it
       room_cv_.notify_all();
       work_cv_.wait(lock);

@@ -40,6 +40,10 @@ struct MapperOptions {
   CameraModel camera;                       // intrinsics at full image resolution
   Pose T_lidar_camera = Pose::Identity();   // the camera in the LiDAR frame (poses are the LiDAR's)
   QueuePolicy policy = QueuePolicy::kReplay;
+  // kReplay: how long a caller waits for room while the mapper itself waits for a pose. A pose
+  // from another thread ends such a wait; one that only the waiting caller could give never
+  // would, so after this the item is dropped (counted as queue full) instead of hanging for ever.
+  double max_wait_seconds = 60.0;
   std::size_t max_queued_items = 16;                  // scans + images waiting, feature maps included
   std::size_t max_queued_bytes = std::size_t{1} << 30;  // their points and feature maps
   // Finished submaps whose anchor is farther than this from the robot leave memory (0: never);
@@ -63,6 +67,9 @@ class Mapper {
   bool add_image(const ImageRecord& record);            // features from the FeatureSource
   bool add_features(double stamp, FeatureMap features);  // features computed elsewhere
   bool add_pose(double stamp, const Pose& T_world_sensor);  // never waits
+  // No more poses will come (e.g. a replay has given its last): items after the last pose are
+  // counted as without a pose at once instead of waiting.
+  void end_poses();
   // An item the caller could not even read (a corrupt scan file, ...): counted as failed.
   void add_unreadable_scan(const std::string& problem);
   void add_unreadable_image(const std::string& problem);
@@ -103,7 +110,7 @@ class Mapper {
   std::size_t queued_bytes_ = 0;
   Trajectory trajectory_;
   double last_scan_stamp_, last_image_stamp_;
-  bool closing_ = false, stopping_ = false, waiting_for_pose_ = false;
+  bool closing_ = false, stopping_ = false, waiting_for_pose_ = false, poses_ended_ = false;
   PipelineReport report_;
   std::exception_ptr error_;
   // Feature maps already fused, whose buffers the inference thread fills again (at most

@@ -5,80 +5,13 @@
 
 #include <chrono>
 #include <cmath>
+#include <atomic>
 #include <thread>
 
 #include "slamvdb/core/error.hpp"
-#include "slamvdb/inference/simulated_encoders.hpp"
-#include "slamvdb/io/scan_io.hpp"
-#include "slamvdb/io/sequence_reader.hpp"
-#include "slamvdb/testing/map_cells.hpp"
-#include "slamvdb/testing/pipeline_fixture.hpp"
 
 namespace slamvdb {
 namespace {
-
-using testing::MappingPipelineTest;
-
-void expect_same_cells(const SemanticMap& a, const SemanticMap& b) {
-  const auto ca = testing::index_cells(a), cb = testing::index_cells(b);
-  ASSERT_EQ(ca.size(), cb.size());
-  ASSERT_GT(ca.size(), 0u);
-  for (auto ia = ca.begin(), ib = cb.begin(); ia != ca.end(); ++ia, ++ib) {
-    ASSERT_EQ(ia->first, ib->first);
-    ASSERT_EQ(ia->second.count, ib->second.count);
-    ASSERT_EQ(ia->second.embedding, ib->second.embedding);
-  }
-  EXPECT_EQ(a.num_occupied_voxels(), b.num_occupied_voxels());
-  EXPECT_EQ(a.num_known_voxels(), b.num_known_voxels());
-}
-
-MapperOptions mapper_options(const Sequence& seq, const PipelineOptions& o) {
-  MapperOptions m;
-  m.map = o.map;
-  m.fusion = o.fusion;
-  m.camera = seq.camera;
-  m.T_lidar_camera = seq.T_lidar_camera;
-  return m;
-}
-
-// A robot's poses often come late (odometry, then loop closure): every scan and image arrives
-// first, from one thread, the poses later from another. Nothing is dropped for arriving early,
-// and the map is the one a time-ordered replay gives.
-TEST_F(MappingPipelineTest, MapperFusesImagesThatArriveBeforeTheirPoses) {
-  const Sequence seq = read_sequence(dir_);
-  PipelineOptions o = options();
-  o.max_scans = 30;
-  EncoderFeatureSource in_order_source(std::make_unique<SimulatedDenseEncoder>(encoder_config()),
-                                       EncoderFeatureSource::Input::kLabels);
-  PipelineReport in_order;
-  const SemanticMap reference = build_map(seq, &in_order_source, o, in_order);
-  ASSERT_GT(in_order.images_fused, 5u);
-
-  EncoderFeatureSource source(std::make_unique<SimulatedDenseEncoder>(encoder_config()),
-                              EncoderFeatureSource::Input::kLabels);
-  MapperOptions m = mapper_options(seq, o);
-  m.max_queued_items = 1000;
-  Mapper mapper(m, SemanticMap(o.map), &source);
-  const double last_scan = seq.scans[29].stamp;
-  for (std::size_t i = 0; i < 30; ++i) ASSERT_TRUE(mapper.add_scan(seq.scans[i].stamp, read_scan(seq.scans[i]).points));
-  for (const ImageRecord& image : seq.images)
-    if (image.stamp <= last_scan) {
-      ASSERT_TRUE(mapper.add_image(image));
-    }
-  std::this_thread::sleep_for(std::chrono::milliseconds(100));
-  EXPECT_EQ(mapper.report().scans_integrated, 0u);  // nothing can be placed yet
-  std::thread poses([&] {
-    for (std::size_t i = 0; i < seq.poses.size(); ++i) mapper.add_pose(seq.poses.stamps()[i], seq.poses.poses()[i]);
-  });
-  poses.join();
-  const SemanticMap map = mapper.finish();
-  const PipelineReport r = mapper.report();
-  EXPECT_EQ(r.scans_integrated, 30u);
-  EXPECT_EQ(r.images_fused, in_order.images_fused);
-  EXPECT_EQ(r.images_outside_pose_range, in_order.images_outside_pose_range);
-  EXPECT_EQ(r.sensor_items_dropped(), in_order.sensor_items_dropped());
-  expect_same_cells(map, reference);
-}
 
 // A wall 6 m ahead of a camera that looks along the sensor's z axis (T_lidar_camera = identity).
 std::vector<Vec3f> wall_ahead() {
@@ -188,9 +121,9 @@ TEST(Mapper, LivePolicyDropsAndCountsFramesThatFindTheQueueFull) {
   EXPECT_EQ(r.images_before_first_scan, taken);  // no scan: nothing to fuse into, counted as such
 }
 
-// The byte bound holds (replay waits for room instead of growing), and a caller that would wait
-// for room while the mapper waits for a pose only that caller can bring gets a counted drop, not a
-// deadlock.
+// The byte bound holds (replay waits for room instead of growing); a caller that waits for room
+// while the mapper waits for a pose only that caller could bring gets a counted drop after
+// max_wait_seconds, not a deadlock; after end_poses() nothing waits for a pose.
 TEST(Mapper, QueueBytesStayBoundedAndAWaitThatCouldNeverEndIsADrop) {
   MapperOptions m;
   m.map.semantic.dim = 8;
@@ -206,16 +139,29 @@ TEST(Mapper, QueueBytesStayBoundedAndAWaitThatCouldNeverEndIsADrop) {
     EXPECT_EQ(r.scans_integrated, 40u);
     EXPECT_LE(r.peak_queued_bytes, 3 * scan_bytes);
   }
+  m.max_wait_seconds = 0.05;
+  {
+    Mapper mapper(m, SemanticMap(m.map));
+    mapper.add_pose(0.0, at_x(0));
+    std::size_t taken = 0;
+    for (int i = 1; i <= 6; ++i) taken += mapper.add_scan(i, wall_ahead());  // no pose covers any yet
+    EXPECT_EQ(taken, 3u);
+    mapper.add_pose(100.0, at_x(10));
+    mapper.finish();
+    const PipelineReport r = mapper.report();
+    EXPECT_EQ(r.scans_queue_full, 3u);
+    EXPECT_EQ(r.scans_integrated, 3u);
+  }
+  m.max_wait_seconds = 1e6;
   Mapper mapper(m, SemanticMap(m.map));
   mapper.add_pose(0.0, at_x(0));
-  std::size_t taken = 0;
-  for (int i = 1; i <= 6; ++i) taken += mapper.add_scan(i, wall_ahead());  // no pose covers any yet
-  EXPECT_EQ(taken, 3u);
-  mapper.add_pose(100.0, at_x(10));
+  mapper.add_pose(3.0, at_x(1));
+  mapper.end_poses();
+  for (int i = 1; i <= 10; ++i) ASSERT_TRUE(mapper.add_scan(i, wall_ahead()));  // 4..10: never covered
   mapper.finish();
   const PipelineReport r = mapper.report();
-  EXPECT_EQ(r.scans_queue_full, 3u);
   EXPECT_EQ(r.scans_integrated, 3u);
+  EXPECT_EQ(r.scans_without_pose, 7u);
 }
 
 TEST(Mapper, FeaturesOfTheWrongDimensionAreAnErrorAtFinish) {
@@ -233,6 +179,65 @@ TEST(Mapper, FeaturesOfTheWrongDimensionAreAnErrorAtFinish) {
   } catch (const Error& e) {
     EXPECT_NE(std::string(e.what()).find("16 channels"), std::string::npos) << e.what();
   }
+}
+
+// Everything at once, as on a robot: scans, feature maps and poses from three threads, while a
+// loop closer moves and merges finished submaps and a reader reads the index. Built under
+// ThreadSanitizer in CI (scripts/test_tsan.sh); here it checks that every item is accounted for.
+TEST(Mapper, StreamsFromSeveralThreadsWhileSubmapsAreMovedMergedAndRead) {
+  MapperOptions m;
+  m.map.semantic.dim = 8;
+  m.map.submap_length = 1.0;
+  m.camera = small_camera();
+  m.max_queued_items = 8;
+  Mapper mapper(m, SemanticMap(m.map));
+  constexpr int kFrames = 80;
+  auto stamp = [](int i) { return 0.1 * i; };
+  std::thread poses([&] {
+    for (int i = 0; i <= kFrames; ++i) {
+      mapper.add_pose(stamp(i), at_x(0.1 * i));
+      std::this_thread::sleep_for(std::chrono::microseconds(300));
+    }
+  });
+  std::thread scans([&] {
+    for (int i = 0; i < kFrames; ++i) mapper.add_scan(stamp(i) + 0.01, wall_ahead());
+  });
+  std::thread images([&] {
+    for (int i = 0; i < kFrames; ++i) mapper.add_features(stamp(i) + 0.05, unit_features(8));
+  });
+  std::atomic<bool> stop{false};
+  std::size_t moves = 0, merges = 0, reads = 0;
+  std::thread closer([&] {
+    while (!stop) {
+      const std::vector<SubmapInfo> submaps = mapper.map().submaps();
+      std::optional<int> previous;
+      for (const SubmapInfo& s : submaps) {
+        if (!s.finished) continue;
+        try {
+          Pose T = s.T_world_submap;
+          T.translation().z() += 1e-3;
+          mapper.correct_submaps({{s.id, T}});
+          ++moves;
+          if (previous && mapper.merge_submaps(*previous, s.id, {.min_overlap = 0.0}).refused.empty()) ++merges;
+        } catch (const Error&) {  // merged away meanwhile
+        }
+        previous = s.id;
+      }
+      mapper.map().read_index([&](const GlobalIndex& index) { reads += index.size() > 0; });
+    }
+  });
+  poses.join(), scans.join(), images.join();
+  while (mapper.report().scans_integrated + mapper.report().scans_queue_full < kFrames)
+    std::this_thread::sleep_for(std::chrono::milliseconds(2));
+  stop = true;
+  closer.join();
+  const SemanticMap map = mapper.finish();
+  const PipelineReport r = mapper.report();
+  EXPECT_EQ(r.scans_integrated, static_cast<std::size_t>(kFrames));
+  EXPECT_EQ(r.images_fused + r.images_before_first_scan + r.images_failed, static_cast<std::size_t>(kFrames));
+  EXPECT_EQ(r.sensor_items_dropped(), r.images_before_first_scan);
+  EXPECT_GT(moves, 0u);
+  EXPECT_GT(map.num_semantic_voxels(), 0u);
 }
 
 }  // namespace

@@ -73,6 +73,7 @@ SemanticMap continue_map(SemanticMap start, const Sequence& seq, FeatureSource* 
     }
     if (tp == t) {
       mapper.add_pose(tp, poses.poses()[pi++]);
+      if (pi == poses.size()) mapper.end_poses();  // what comes after the last pose needs no wait
     } else if (ts == t) {
       const ScanRecord& rec = seq.scans[si++];
       try {

@@ -1,5 +1,7 @@
 #pragma once
 // Test helpers: a map's semantic cells read through the global index, decoded, keyed by cell.
+#include <gtest/gtest.h>
+
 #include <map>
 #include <tuple>
 #include <vector>
@@ -29,6 +31,21 @@ inline std::map<CellTuple, DecodedCell> index_cells(const SemanticMap& map) {
     }
   });
   return out;
+}
+
+// Two maps read through their indexes hold the same cells with the same counts and embeddings,
+// and the same occupancy totals.
+inline void expect_same_index_cells(const SemanticMap& a, const SemanticMap& b) {
+  const auto ca = index_cells(a), cb = index_cells(b);
+  ASSERT_EQ(ca.size(), cb.size());
+  ASSERT_GT(ca.size(), 0u);
+  for (auto ia = ca.begin(), ib = cb.begin(); ia != ca.end(); ++ia, ++ib) {
+    ASSERT_EQ(ia->first, ib->first);
+    ASSERT_EQ(ia->second.count, ib->second.count);
+    ASSERT_EQ(ia->second.embedding, ib->second.embedding);
+  }
+  EXPECT_EQ(a.num_occupied_voxels(), b.num_occupied_voxels());
+  EXPECT_EQ(a.num_known_voxels(), b.num_known_voxels());
 }
 
 // Bytes the semantic layers of all submaps allocate, per entry.
