@@ -110,15 +110,26 @@ const char* stream_order_problem(double stamp, double& last) {
 }
 }  // namespace
 
-bool Mapper::add_scan(double stamp, std::vector<Vec3f> points_sensor) {
-  std::unique_lock lock(mutex_);
-  ++report_.scans_total;
-  if (const char* problem = stream_order_problem(stamp, last_scan_stamp_)) {
-    ++(stamp == last_scan_stamp_ ? report_.scans_duplicate : report_.scans_out_of_order);
-    report_.add_problem(fmt::format("scan at {:.6f} s: {}", stamp, problem));
+std::optional<bool> Mapper::screen(bool scan, double stamp) {
+  ++(scan ? report_.scans_total : report_.images_total);
+  double& last = scan ? last_scan_stamp_ : last_image_stamp_;
+  const bool duplicate = stamp == last;
+  if (const char* problem = stream_order_problem(stamp, last)) {
+    if (scan) ++(duplicate ? report_.scans_duplicate : report_.scans_out_of_order);
+    else ++(duplicate ? report_.images_duplicate : report_.images_out_of_order);
+    report_.add_problem(fmt::format("{} at {:.6f} s: {}", scan ? "scan" : "image", stamp, problem));
     return false;
   }
-  if (stamp <= resume_after_) return ++report_.scans_resumed, true;
+  if (stamp <= resume_after_) {
+    ++(scan ? report_.scans_resumed : report_.images_resumed);
+    return true;
+  }
+  return std::nullopt;
+}
+
+bool Mapper::add_scan(double stamp, std::vector<Vec3f> points_sensor) {
+  std::unique_lock lock(mutex_);
+  if (const auto answer = screen(true, stamp)) return *answer;
   auto item = std::make_unique<Item>();
   item->stamp = stamp;
   item->bytes = points_sensor.size() * sizeof(Vec3f);
@@ -129,13 +140,7 @@ bool Mapper::add_scan(double stamp, std::vector<Vec3f> points_sensor) {
 bool Mapper::add_image(const ImageRecord& record) {
   if (!features_) throw Error("this mapper has no feature source: give images as feature maps (add_features)");
   std::unique_lock lock(mutex_);
-  ++report_.images_total;
-  if (const char* problem = stream_order_problem(record.stamp, last_image_stamp_)) {
-    ++(record.stamp == last_image_stamp_ ? report_.images_duplicate : report_.images_out_of_order);
-    report_.add_problem(fmt::format("image at {:.6f} s: {}", record.stamp, problem));
-    return false;
-  }
-  if (record.stamp <= resume_after_) return ++report_.images_resumed, true;
+  if (const auto answer = screen(false, record.stamp)) return *answer;
   auto item = std::make_unique<Item>();
   item->is_scan = false;
   item->stamp = record.stamp;
@@ -146,13 +151,7 @@ bool Mapper::add_image(const ImageRecord& record) {
 
 bool Mapper::add_features(double stamp, FeatureMap features) {
   std::unique_lock lock(mutex_);
-  ++report_.images_total;
-  if (const char* problem = stream_order_problem(stamp, last_image_stamp_)) {
-    ++(stamp == last_image_stamp_ ? report_.images_duplicate : report_.images_out_of_order);
-    report_.add_problem(fmt::format("image at {:.6f} s: {}", stamp, problem));
-    return false;
-  }
-  if (stamp <= resume_after_) return ++report_.images_resumed, true;
+  if (const auto answer = screen(false, stamp)) return *answer;
   auto item = std::make_unique<Item>();
   item->is_scan = false;
   item->stamp = stamp;

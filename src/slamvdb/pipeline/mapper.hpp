@@ -89,6 +89,10 @@ class Mapper {
 
  private:
   struct Item;
+  // Counts a new item of the scan or image stream and checks its stamp. Returns the answer for the
+  // caller when the item goes no further (false: refused, counted with why; true: already in the
+  // resumed map); nothing when it is to be queued.
+  std::optional<bool> screen(bool scan, double stamp);
   bool admit(std::unique_lock<std::mutex>& lock, std::unique_ptr<Item> item);
   void mapping_loop();
   void inference_loop();

@@ -7,7 +7,7 @@
 #include "slamvdb/inference/simulated_encoders.hpp"
 #include "slamvdb/io/scan_io.hpp"
 #include "slamvdb/io/sequence_reader.hpp"
-#include "slamvdb/pipeline/mapper.hpp"
+#include "slamvdb/pipeline/mapping_pipeline.hpp"
 #include "slamvdb/testing/map_cells.hpp"
 #include "slamvdb/testing/pipeline_fixture.hpp"
 
@@ -15,15 +15,6 @@ namespace slamvdb {
 namespace {
 
 using testing::MappingPipelineTest;
-
-MapperOptions mapper_options(const Sequence& seq, const PipelineOptions& o) {
-  MapperOptions m;
-  m.map = o.map;
-  m.fusion = o.fusion;
-  m.camera = seq.camera;
-  m.T_lidar_camera = seq.T_lidar_camera;
-  return m;
-}
 
 // A robot's poses often come late (odometry, then loop closure): every scan and image arrives
 // first, from one thread, the poses later from another. Nothing is dropped for arriving early,

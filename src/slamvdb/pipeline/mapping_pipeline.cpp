@@ -11,8 +11,8 @@
 namespace slamvdb {
 
 namespace {
-
 using Clock = std::chrono::steady_clock;
+}  // namespace
 
 MapperOptions mapper_options(const Sequence& seq, const PipelineOptions& options) {
   MapperOptions m;
@@ -26,8 +26,6 @@ MapperOptions mapper_options(const Sequence& seq, const PipelineOptions& options
   m.unload_radius = options.unload_radius;
   return m;
 }
-
-}  // namespace
 
 SemanticMap build_map(const Sequence& seq, FeatureSource* features, const PipelineOptions& options,
                       PipelineReport& report, const ProgressFn& progress) {

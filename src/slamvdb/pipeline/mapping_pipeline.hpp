@@ -27,6 +27,9 @@ struct PipelineOptions {
   double unload_radius = 0;      // MapperOptions::unload_radius
 };
 
+// The Mapper's options for replaying `sequence` (its camera and calibration) with `options`.
+MapperOptions mapper_options(const Sequence& sequence, const PipelineOptions& options);
+
 using ProgressFn = std::function<void(std::size_t done, std::size_t total)>;
 
 // features may be null: geometry only. Throws Error on a configuration problem that would make
