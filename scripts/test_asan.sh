@@ -26,8 +26,8 @@ logs=build-asan/asan-logs
 mkdir -p $logs
 pids=()
 for ((i = 0; i < shards; ++i)); do
-  GTEST_TOTAL_SHARDS=$shards GTEST_SHARD_INDEX=$i timeout 2400 build-asan/slamvdb_tests --gtest_brief=1 \
-    > $logs/shard-$i.log 2>&1 &
+  GTEST_TOTAL_SHARDS=$shards GTEST_SHARD_INDEX=$i timeout 2400 build-asan/slamvdb_tests \
+    > $logs/shard-$i.log 2>&1 &  # each test's time is in the log
   pids+=($!)
 done
 status=0
