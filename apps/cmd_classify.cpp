@@ -14,7 +14,7 @@
 #include "slamvdb/query/map_query.hpp"
 #include "slamvdb/store/map_store.hpp"
 
-namespace slamvdb::cli {
+namespace slamvdb::cli::cmd_classify {
 namespace {
 
 struct Options {
@@ -145,4 +145,4 @@ void add(CLI::App& root) {
 const RegisterCommand reg{add};
 
 }  // namespace
-}  // namespace slamvdb::cli
+}  // namespace slamvdb::cli::cmd_classify

@@ -27,7 +27,7 @@
 #if SLAMVDB_WITH_TRAINING  // the demo trains query vectors (libtorch); without it there is no demo command
 #include "slamvdb/training/train_queries.hpp"
 
-namespace slamvdb::cli {
+namespace slamvdb::cli::cmd_demo {
 namespace {
 namespace fs = std::filesystem;
 
@@ -217,5 +217,5 @@ void add(CLI::App& root) {
 const RegisterCommand reg{add};
 
 }  // namespace
-}  // namespace slamvdb::cli
+}  // namespace slamvdb::cli::cmd_demo
 #endif  // SLAMVDB_WITH_TRAINING

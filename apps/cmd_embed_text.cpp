@@ -16,7 +16,7 @@
 #include "slamvdb/inference/torch_encoders.hpp"
 #endif
 
-namespace slamvdb::cli {
+namespace slamvdb::cli::cmd_embed_text {
 namespace {
 
 namespace fs = std::filesystem;
@@ -77,4 +77,4 @@ void add(CLI::App& root) {
 const RegisterCommand reg{add};
 
 }  // namespace
-}  // namespace slamvdb::cli
+}  // namespace slamvdb::cli::cmd_embed_text

@@ -17,7 +17,7 @@
 #include "slamvdb/io/sequence_reader.hpp"
 #include "slamvdb/store/map_store.hpp"
 
-namespace slamvdb::cli {
+namespace slamvdb::cli::cmd_eval {
 namespace {
 
 struct Options {
@@ -171,4 +171,4 @@ void add(CLI::App& root) {
 const RegisterCommand reg{add};
 
 }  // namespace
-}  // namespace slamvdb::cli
+}  // namespace slamvdb::cli::cmd_eval

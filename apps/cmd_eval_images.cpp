@@ -14,7 +14,7 @@
 #include "slamvdb/eval/image_baseline.hpp"
 #include "slamvdb/io/sequence_reader.hpp"
 
-namespace slamvdb::cli {
+namespace slamvdb::cli::cmd_eval_images {
 namespace {
 
 struct Options {
@@ -90,4 +90,4 @@ void add(CLI::App& root) {
 const RegisterCommand reg{add};
 
 }  // namespace
-}  // namespace slamvdb::cli
+}  // namespace slamvdb::cli::cmd_eval_images

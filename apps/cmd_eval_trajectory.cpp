@@ -15,7 +15,7 @@
 #include "slamvdb/io/trajectory_plot.hpp"
 #include "slamvdb/localization/trajectory_metrics.hpp"
 
-namespace slamvdb::cli {
+namespace slamvdb::cli::cmd_eval_trajectory {
 namespace {
 
 namespace fs = std::filesystem;
@@ -128,4 +128,4 @@ void add(CLI::App& root) {
 const RegisterCommand reg{add};
 
 }  // namespace
-}  // namespace slamvdb::cli
+}  // namespace slamvdb::cli::cmd_eval_trajectory

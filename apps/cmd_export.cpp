@@ -23,7 +23,7 @@
 #include "slamvdb/io/map_pictures.hpp"
 #include "slamvdb/store/map_store.hpp"
 
-namespace slamvdb::cli {
+namespace slamvdb::cli::cmd_export {
 namespace {
 namespace fs = std::filesystem;
 
@@ -211,4 +211,4 @@ void add(CLI::App& root) {
 const RegisterCommand reg{add};
 
 }  // namespace
-}  // namespace slamvdb::cli
+}  // namespace slamvdb::cli::cmd_export

@@ -7,7 +7,7 @@
 #include "slamvdb/ontology/ontology.hpp"
 #include "slamvdb/query/query_set.hpp"
 
-namespace slamvdb::cli {
+namespace slamvdb::cli::cmd_import_queries {
 namespace {
 
 struct Options {
@@ -44,4 +44,4 @@ void add(CLI::App& root) {
 const RegisterCommand reg{add};
 
 }  // namespace
-}  // namespace slamvdb::cli
+}  // namespace slamvdb::cli::cmd_import_queries

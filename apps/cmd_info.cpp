@@ -13,7 +13,7 @@
 #include "slamvdb/core/text_escape.hpp"
 #include "slamvdb/store/map_store.hpp"
 
-namespace slamvdb::cli {
+namespace slamvdb::cli::cmd_info {
 namespace {
 
 struct Options {
@@ -170,4 +170,4 @@ void add(CLI::App& root) {
 const RegisterCommand reg{add};
 
 }  // namespace
-}  // namespace slamvdb::cli
+}  // namespace slamvdb::cli::cmd_info

@@ -20,7 +20,7 @@
 #include "slamvdb/localization/loop_closure.hpp"
 #include "slamvdb/localization/odometry.hpp"
 
-namespace slamvdb::cli {
+namespace slamvdb::cli::cmd_odometry {
 namespace {
 
 namespace fs = std::filesystem;
@@ -173,4 +173,4 @@ void add(CLI::App& root) {
 const RegisterCommand reg{add};
 
 }  // namespace
-}  // namespace slamvdb::cli
+}  // namespace slamvdb::cli::cmd_odometry

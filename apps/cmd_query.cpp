@@ -20,7 +20,7 @@
 #include "slamvdb/query/map_query.hpp"
 #include "slamvdb/store/map_store.hpp"
 
-namespace slamvdb::cli {
+namespace slamvdb::cli::cmd_query {
 namespace {
 
 struct Options {
@@ -321,4 +321,4 @@ void add(CLI::App& root) {
 const RegisterCommand reg{add};
 
 }  // namespace
-}  // namespace slamvdb::cli
+}  // namespace slamvdb::cli::cmd_query

@@ -20,7 +20,7 @@
 #include "slamvdb/inference/torch_encoders.hpp"
 #endif
 
-namespace slamvdb::cli {
+namespace slamvdb::cli::cmd_segment {
 namespace {
 
 namespace fs = std::filesystem;
@@ -188,4 +188,4 @@ void add(CLI::App& root) {
 const RegisterCommand reg{add};
 
 }  // namespace
-}  // namespace slamvdb::cli
+}  // namespace slamvdb::cli::cmd_segment

@@ -23,7 +23,7 @@
 #include "slamvdb/pipeline/mapping_pipeline.hpp"
 #include "slamvdb/store/map_store.hpp"
 
-namespace slamvdb::cli {
+namespace slamvdb::cli::cmd_slam {
 namespace {
 
 struct Options {
@@ -181,4 +181,4 @@ void add(CLI::App& root) {
 const RegisterCommand reg{add};
 
 }  // namespace
-}  // namespace slamvdb::cli
+}  // namespace slamvdb::cli::cmd_slam

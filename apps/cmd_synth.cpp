@@ -16,7 +16,7 @@
 #include "slamvdb/core/error.hpp"
 #include "slamvdb/synth/sequence_writer.hpp"
 
-namespace slamvdb::cli {
+namespace slamvdb::cli::cmd_synth {
 namespace {
 
 namespace fs = std::filesystem;
@@ -131,4 +131,4 @@ void add(CLI::App& root) {
 const RegisterCommand reg{add};
 
 }  // namespace
-}  // namespace slamvdb::cli
+}  // namespace slamvdb::cli::cmd_synth

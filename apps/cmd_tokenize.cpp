@@ -7,7 +7,7 @@
 #include "command_registry.hpp"
 #include "slamvdb/inference/clip_tokenizer.hpp"
 
-namespace slamvdb::cli {
+namespace slamvdb::cli::cmd_tokenize {
 namespace {
 
 struct Options {
@@ -44,4 +44,4 @@ void add(CLI::App& root) {
 const RegisterCommand reg{add};
 
 }  // namespace
-}  // namespace slamvdb::cli
+}  // namespace slamvdb::cli::cmd_tokenize

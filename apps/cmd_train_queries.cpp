@@ -16,7 +16,7 @@
 #include "slamvdb/training/train_queries.hpp"
 #endif
 
-namespace slamvdb::cli {
+namespace slamvdb::cli::cmd_train_queries {
 namespace {
 
 #if SLAMVDB_WITH_TRAINING
@@ -157,4 +157,4 @@ void add(CLI::App& root) {
 const RegisterCommand reg{add};
 
 }  // namespace
-}  // namespace slamvdb::cli
+}  // namespace slamvdb::cli::cmd_train_queries

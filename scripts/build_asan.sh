@@ -7,6 +7,9 @@
 # while GCC's ASan runs the same tests clean; libFuzzer exists only in clang, and
 # the fuzzers build only the libraries, not the tests. Benchmarks are built in neither.
 # -O1 and line tables only: fast enough to run, cheap to compile, readable stack traces.
+# Unity builds (CMake merges up to 16 sources of a target into one translation unit): Eigen,
+# OpenCV, gtest, fmt and the project's headers are parsed once per batch instead of once per file,
+# which is most of a sanitizer build's time (see README, "Sanitizers", for the measurements).
 # Without the TorchScript backend and query training (libtorch is not instrumented and its headers
 # would triple the build) and without the Python module (CPython would need the ASan runtime
 # preloaded): those run in the Release suite.
@@ -26,6 +29,7 @@ else
 fi
 if [ ! -f $tree/CMakeCache.txt ]; then
   cmake -S . -B $tree -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo "${config[@]}" \
+    -DCMAKE_UNITY_BUILD=${SLAMVDB_UNITY:-ON} -DCMAKE_UNITY_BUILD_BATCH_SIZE=16 \
     -DSLAMVDB_SANITIZE=address,undefined -DSLAMVDB_WITH_TORCH=OFF -DSLAMVDB_PYTHON_MODULE=OFF "${launcher[@]}" > /dev/null
 fi
 targets=("$@")

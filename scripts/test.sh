@@ -1,10 +1,39 @@
 #!/usr/bin/env bash
-# Installs + builds (Release), then runs every test (unit, integration, CLI, Python) with CTest, then
-# the map's concurrency tests under ThreadSanitizer (GCC, build-tsan/). CI runs exactly this.
-# Also available, not yet part of CI (see README, "Sanitizers"): scripts/test_asan.sh (the suite
-# under ASan + UBSan) and scripts/fuzz.sh (every fuzz harness, 20 s each).
+# Every check, one stage after the other; CI runs exactly this (.ci/run), from a clean clone:
+#   setup          scripts/setup.sh: installs, builds in Release (build/)
+#   release tests  every test (unit, integration, CLI, Python, viewer) with CTest
+#   asan build     scripts/build_asan.sh: the test suite under ASan + UBSan (GCC, build-asan/)
+#   asan tests     scripts/test_asan.sh: that suite (any report fails the test)
+#   fuzz build     FUZZ=1 scripts/build_asan.sh: the libFuzzer harnesses (clang, build-fuzz/)
+#   fuzz runs      scripts/fuzz.sh: every harness for FUZZ_SECONDS (default 20) s
+#   tsan           scripts/test_tsan.sh: the map's concurrency tests under ThreadSanitizer
+# Each stage's wall time is printed at the end, also when a stage fails (README, "Sanitizers",
+# has the measured times). SLAMVDB_SKIP_SANITIZERS=1 runs only the first two stages.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-scripts/setup.sh
-ctest --test-dir build --output-on-failure -j"$(nproc)" --timeout 900
-scripts/test_tsan.sh
+
+stage_rows=()
+stage() {
+  local name=$1 start=$SECONDS status=0
+  shift
+  echo "=== $name: $*"
+  "$@" || status=$?
+  stage_rows+=("$(printf '%-14s %6d s  %s' "$name" $((SECONDS - start)) "$([ $status = 0 ] && echo ok || echo "FAILED ($status)")")")
+  return $status
+}
+print_stage_times() {
+  echo "=== stage times (wall)"
+  printf '%s\n' "${stage_rows[@]}"
+  printf '%-14s %6d s\n' total $SECONDS
+}
+trap print_stage_times EXIT
+
+stage setup scripts/setup.sh
+stage "release tests" ctest --test-dir build --output-on-failure -j"$(nproc)" --timeout 900
+if [ "${SLAMVDB_SKIP_SANITIZERS:-0}" != 1 ]; then
+  stage "asan build" scripts/build_asan.sh
+  stage "asan tests" scripts/test_asan.sh
+  stage "fuzz build" env FUZZ=1 scripts/build_asan.sh
+  stage "fuzz runs" scripts/fuzz.sh "${FUZZ_SECONDS:-20}"
+  stage tsan scripts/test_tsan.sh
+fi

@@ -1,13 +1,14 @@
 #!/usr/bin/env bash
 # The map's concurrency tests (finished submaps and the global index read from several threads
 # while the active submap is written, moved and merged) built and run under ThreadSanitizer in
-# build-tsan/ (GCC; only the map library and its tests are built).
+# build-tsan/ (GCC, unity build as in scripts/build_asan.sh; only the map library and its tests are
+# built).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 launcher=()
 if [ -n "${CCACHE_DIR:-}" ] && command -v ccache > /dev/null; then launcher=(-DCMAKE_CXX_COMPILER_LAUNCHER=ccache); fi
 if [ ! -f build-tsan/CMakeCache.txt ]; then
-  cmake -S . -B build-tsan -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo \
+  cmake -S . -B build-tsan -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_UNITY_BUILD=ON \
     -DSLAMVDB_SANITIZE=thread -DSLAMVDB_WITH_TORCH=OFF -DSLAMVDB_PYTHON_MODULE=OFF "${launcher[@]}" > /dev/null
 fi
 cmake --build build-tsan -j"$(nproc)" --target slamvdb_concurrency_tests

@@ -16,7 +16,7 @@ namespace {
 namespace fs = std::filesystem;
 using testing::CommandResult;
 using testing::shell_quote;
-const auto cli = [](const std::string& args) { return testing::run_cli(args); };
+const auto colour_cli = [](const std::string& args) { return testing::run_cli(args); };
 
 std::string bytes_of(const fs::path& p) {
   std::ifstream in(p, std::ios::binary);
@@ -27,13 +27,13 @@ TEST(ColourBasisCommand, MapsOfOneSpaceShareTheirColours) {
   testing::TempDir tmp;
   const auto q = [&](const char* name) { return shell_quote((tmp.path / name).string()); };
   // A SIMULATED 15 m drive with small images and scans: semantics in a second.
-  ASSERT_EQ(cli("synth " + q("seq") + " --length 15 --image-size 160x100 --lidar-columns 256").exit_code, 0);
+  ASSERT_EQ(colour_cli("synth " + q("seq") + " --length 15 --image-size 160x100 --lidar-columns 256").exit_code, 0);
   const std::string map = "map " + q("seq") + " --dim 8 --feature-size 80x50 ";
-  ASSERT_EQ(cli(map + "-o " + q("a.svdb")).exit_code, 0);
+  ASSERT_EQ(colour_cli(map + "-o " + q("a.svdb")).exit_code, 0);
   // b and c: the same part of the drive; b adopts a's basis, c fits its own.
-  CommandResult r = cli(map + "--max-scans 10 -o " + q("b.svdb") + " --colour-basis " + q("a.svdb"));
+  CommandResult r = colour_cli(map + "--max-scans 10 -o " + q("b.svdb") + " --colour-basis " + q("a.svdb"));
   ASSERT_EQ(r.exit_code, 0) << r.output;
-  ASSERT_EQ(cli(map + "--max-scans 10 -o " + q("c.svdb")).exit_code, 0);
+  ASSERT_EQ(colour_cli(map + "--max-scans 10 -o " + q("c.svdb")).exit_code, 0);
 
   const SemanticMap a = load_map(tmp.path / "a.svdb"), b = load_map(tmp.path / "b.svdb"),
                     c = load_map(tmp.path / "c.svdb");
@@ -52,19 +52,19 @@ TEST(ColourBasisCommand, MapsOfOneSpaceShareTheirColours) {
   for (std::size_t i = 0; i < drawn.size(); ++i) EXPECT_EQ(drawn[i].rgb, expected[i].rgb) << i;
 
   // c exported in a's basis is b's picture to the byte; in its own basis it is not.
-  ASSERT_EQ(cli("export " + q("b.svdb") + " -o " + q("b.ply")).exit_code, 0);
-  r = cli("export " + q("c.svdb") + " -o " + q("c_in_a.ply") + " --colour-basis " + q("a.svdb"));
+  ASSERT_EQ(colour_cli("export " + q("b.svdb") + " -o " + q("b.ply")).exit_code, 0);
+  r = colour_cli("export " + q("c.svdb") + " -o " + q("c_in_a.ply") + " --colour-basis " + q("a.svdb"));
   ASSERT_EQ(r.exit_code, 0) << r.output;
-  ASSERT_EQ(cli("export " + q("c.svdb") + " -o " + q("c.ply")).exit_code, 0);
+  ASSERT_EQ(colour_cli("export " + q("c.svdb") + " -o " + q("c.ply")).exit_code, 0);
   EXPECT_EQ(bytes_of(tmp.path / "c_in_a.ply"), bytes_of(tmp.path / "b.ply"));
   EXPECT_NE(bytes_of(tmp.path / "c.ply"), bytes_of(tmp.path / "b.ply"));
 
   // A basis of another dimension is refused before mapping; with --queries it makes no sense.
-  r = cli("map " + q("seq") + " --dim 16 -o " + q("d.svdb") + " --colour-basis " + q("a.svdb"));
+  r = colour_cli("map " + q("seq") + " --dim 16 -o " + q("d.svdb") + " --colour-basis " + q("a.svdb"));
   EXPECT_EQ(r.exit_code, 2) << r.output;
   EXPECT_NE(r.output.find("8-d, this map's are 16-d"), std::string::npos) << r.output;
   EXPECT_FALSE(fs::exists(tmp.path / "d.svdb"));
-  r = cli("export " + q("c.svdb") + " -o " + q("x.ply") + " --colour-basis " + q("a.svdb") + " --queries " + q("a.svdb"));
+  r = colour_cli("export " + q("c.svdb") + " -o " + q("x.ply") + " --colour-basis " + q("a.svdb") + " --queries " + q("a.svdb"));
   EXPECT_EQ(r.exit_code, 2) << r.output;
 }
 

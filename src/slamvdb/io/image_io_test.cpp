@@ -13,13 +13,13 @@ namespace slamvdb {
 namespace {
 namespace fs = std::filesystem;
 
-const fs::path kFixture = fs::path(SLAMVDB_SOURCE_DIR) / "../shared/fixtures/rellis3d-000104";
+const fs::path kRellisImages = fs::path(SLAMVDB_SOURCE_DIR) / "../shared/fixtures/rellis3d-000104";
 
 using testing::TempDir;
 
 TEST(ImageIo, SizeFromJpegAndPngHeadersMatchesDecodedImages) {
   for (const char* name : {"frame000104-1581624663_149.jpg", "frame000104-1581624663_149.png"}) {
-    EXPECT_EQ(read_image_size(kFixture / name), cv::Size(1920, 1200)) << name;
+    EXPECT_EQ(read_image_size(kRellisImages / name), cv::Size(1920, 1200)) << name;
   }
   TempDir tmp;
   const cv::Mat odd(37, 53, CV_8UC3, cv::Scalar(1, 2, 3));

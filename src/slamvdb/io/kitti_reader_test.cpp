@@ -29,7 +29,7 @@ constexpr const char* kCalib =
     "8.081198471645e-03 -9.999413164504e-01 -5.403984729748e-02 9.999738645903e-01 4.859485810390e-04 "
     "-7.206933692422e-03 -2.921968648686e-01\n";
 
-Pose make_pose(double yaw, const Vec3d& t) {
+Pose yawed_pose(double yaw, const Vec3d& t) {
   Pose T = Pose::Identity();
   T.linear() = Eigen::AngleAxisd(yaw, Vec3d::UnitY()).toRotationMatrix();
   T.translation() = t;
@@ -57,7 +57,7 @@ void write_kitti(const fs::path& dir, int frames, int pose_count) {
   std::ofstream(dir / "labels" / "000000.label", std::ios::binary).write(reinterpret_cast<const char*>(&label), 4);
   for (int i = 0; i < pose_count; ++i) {
     const Eigen::Matrix<double, 3, 4, Eigen::RowMajor> m =
-        make_pose(0.1 * i, Vec3d(0.5 * i, 0.01 * i, 1.0 * i)).matrix().topRows<3>();
+        yawed_pose(0.1 * i, Vec3d(0.5 * i, 0.01 * i, 1.0 * i)).matrix().topRows<3>();
     for (int k = 0; k < 12; ++k) poses << m.data()[k] << (k == 11 ? "\n" : " ");
   }
 }
@@ -85,7 +85,7 @@ TEST(KittiReader, ReadsCalibrationPosesAndStamps) {
   const KittiCalib calib = read_kitti_calib(tmp.path / "calib.txt");
   ASSERT_EQ(seq.poses.size(), 3u);
   for (int i = 0; i < 3; ++i) {
-    const Pose T_world_cam0 = make_pose(0.1 * i, Vec3d(0.5 * i, 0.01 * i, 1.0 * i));
+    const Pose T_world_cam0 = yawed_pose(0.1 * i, Vec3d(0.5 * i, 0.01 * i, 1.0 * i));
     EXPECT_TRUE(seq.poses.poses()[i].isApprox(T_world_cam0 * calib.T_cam0_velo, 1e-9)) << i;
   }
   // The LiDAR origin sits about 0.27 m behind camera 0 (KITTI's Tr).

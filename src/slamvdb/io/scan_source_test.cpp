@@ -25,7 +25,7 @@ namespace {
 using slamvdb::testing::error_of;
 using slamvdb::testing::TempDir;
 
-int run_cli(const std::string& args, std::string* output) {
+int run_cli_to(const std::string& args, std::string* output) {
   const std::string log = ::testing::TempDir() + "/slamvdb_loc_cli.log";
   const int rc = std::system((std::string(SLAMVDB_CLI_PATH) + " " + args + " > '" + log + "' 2>&1").c_str());
   std::ifstream in(log);
@@ -93,25 +93,25 @@ TEST(OdometryCommand, RunsOnAFolderOfPcdScansAndIsEvaluated) {
   write_trajectory(dir.path / "truth.txt", stamps, truth, PoseFormat::kTum);
   std::string out;
   const std::string poses = (dir.path / "poses.txt").string();
-  ASSERT_EQ(run_cli("odometry '" + scans.string() + "' -o '" + poses + "' --format tum --rate 10 --loop-closure --json '" +
+  ASSERT_EQ(run_cli_to("odometry '" + scans.string() + "' -o '" + poses + "' --format tum --rate 10 --loop-closure --json '" +
                         (dir.path / "s.json").string() + "'", &out), 0) << out;
   EXPECT_NE(out.find("not registered (too few valid points): 1"), std::string::npos) << out;
   EXPECT_NE(out.find("loops"), std::string::npos) << out;
   // The folder has no times.txt: stamps are i / 10 Hz, so pair the truth by index (KITTI).
   write_trajectory(dir.path / "truth_kitti.txt", stamps, truth, PoseFormat::kKitti);
-  ASSERT_EQ(run_cli("eval-trajectory '" + poses + "' '" + (dir.path / "truth_kitti.txt").string() + "' --png '" +
+  ASSERT_EQ(run_cli_to("eval-trajectory '" + poses + "' '" + (dir.path / "truth_kitti.txt").string() + "' --png '" +
                         (dir.path / "plot.png").string() + "' --json '" + (dir.path / "m.json").string() + "'", &out), 0)
       << out;
   EXPECT_NE(out.find("ATE  rmse 0.0"), std::string::npos) << out;  // centimetres
   EXPECT_TRUE(std::filesystem::exists(dir.path / "plot.png"));
   // Usage errors exit with CLI11's usage code (main.cpp: app.exit), runtime errors with 1, before any work.
   const auto usage_error = [](int rc) { return rc != 0 && rc != 1; };
-  EXPECT_TRUE(usage_error(run_cli("odometry '" + scans.string() + "' -o /nonexistent/dir/p.txt", &out))) << out;
-  EXPECT_TRUE(usage_error(run_cli("odometry '" + scans.string() + "' -o '" + poses + "' --format xyz", &out))) << out;
+  EXPECT_TRUE(usage_error(run_cli_to("odometry '" + scans.string() + "' -o /nonexistent/dir/p.txt", &out))) << out;
+  EXPECT_TRUE(usage_error(run_cli_to("odometry '" + scans.string() + "' -o '" + poses + "' --format xyz", &out))) << out;
   std::filesystem::create_directories(dir.path / "empty");
-  EXPECT_EQ(run_cli("odometry '" + (dir.path / "empty").string() + "' -o '" + poses + "'", &out), 1) << out;
+  EXPECT_EQ(run_cli_to("odometry '" + (dir.path / "empty").string() + "' -o '" + poses + "'", &out), 1) << out;
   EXPECT_NE(out.find("holds no scans"), std::string::npos) << out;
-  EXPECT_EQ(run_cli("eval-trajectory '" + poses + "' '" + (dir.path / "s.json").string() + "'", &out), 1) << out;
+  EXPECT_EQ(run_cli_to("eval-trajectory '" + poses + "' '" + (dir.path / "s.json").string() + "'", &out), 1) << out;
 }
 
 }  // namespace

@@ -142,6 +142,10 @@ QuerySet load_query_set(const fs::path& file) {
     doc = json::parse(text);
   } catch (const json::parse_error& e) {
     throw Error(fmt::format("{} is not a JSON query set (byte {}: {})", where, e.byte, e.what()));
+  } catch (const json::exception& e) {
+    // Not only parse_error: a number beyond double's range is an out_of_range (406) thrown by the
+    // parser itself (found by fuzz_query_set).
+    throw Error(fmt::format("{} is not a JSON query set ({})", where, e.what()));
   }
   if (!doc.is_object() || !doc.contains("format") || !doc["format"].is_string() || doc["format"] != kFormat)
     throw Error(fmt::format("{} is not a slamvdb query set (no \"format\": \"{}\")", where, kFormat));

@@ -79,6 +79,12 @@ TEST(QuerySet, BadFilesAreClearErrors) {
   EXPECT_NE(error_of([&] { load_query_set(f); }).find("cannot read query set file"), std::string::npos);
   write(f, "{\"format\": \"slamvdb-query-set\", ");
   EXPECT_NE(error_of([&] { load_query_set(f); }).find("is not a JSON query set"), std::string::npos);
+  // Numbers beyond double's range make the JSON parser throw out_of_range, not parse_error.
+  for (const char* text : {"1e999999", "{\"format\": \"slamvdb-query-set\", \"version\": 2222e2222222222}",
+                           "[-1e400]"}) {
+    write(f, text);
+    EXPECT_NE(error_of([&] { load_query_set(f); }).find("is not a JSON query set"), std::string::npos) << text;
+  }
   write(f, "{\"format\": \"something-else\"}");
   EXPECT_NE(error_of([&] { load_query_set(f); }).find("is not a slamvdb query set"), std::string::npos);
   write(f, "{\"format\": 3}");

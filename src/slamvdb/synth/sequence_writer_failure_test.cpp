@@ -17,10 +17,10 @@ namespace fs = std::filesystem;
 using slamvdb::testing::run_command;
 using slamvdb::testing::shell_quote;
 
-const std::string kCli = SLAMVDB_CLI_PATH;
+const std::string kCliPath = SLAMVDB_CLI_PATH;
 
 std::string synth_command(const fs::path& out, const std::string& limits) {
-  return fmt::format("{} exec {} synth {} --length 3 --image-size 64x40", limits, shell_quote(kCli),
+  return fmt::format("{} exec {} synth {} --length 3 --image-size 64x40", limits, shell_quote(kCliPath),
                      shell_quote(out.string()));
 }
 
@@ -38,7 +38,7 @@ void expect_no_partial_files(const fs::path& out) {
 }
 
 void expect_map_refuses(const fs::path& out) {
-  const auto map = run_command(fmt::format("exec {} map {} -o {}", shell_quote(kCli), shell_quote(out.string()),
+  const auto map = run_command(fmt::format("exec {} map {} -o {}", shell_quote(kCliPath), shell_quote(out.string()),
                                            shell_quote((out.parent_path() / "refused.svdb").string())));
   EXPECT_EQ(map.exit_code, 1) << map.output;
   EXPECT_NE(map.output.find("incomplete"), std::string::npos) << map.output;

@@ -38,14 +38,14 @@ class TempDir {
   fs::path path_;
 };
 
-std::string read_file(const fs::path& p) {
+std::string file_bytes(const fs::path& p) {
   std::ifstream f(p, std::ios::binary);
   return {std::istreambuf_iterator<char>(f), std::istreambuf_iterator<char>()};
 }
 
 template <typename T>
 std::vector<T> read_array(const fs::path& p) {
-  const std::string bytes = read_file(p);
+  const std::string bytes = file_bytes(p);
   std::vector<T> out(bytes.size() / sizeof(T));
   std::memcpy(out.data(), bytes.data(), out.size() * sizeof(T));
   return out;
@@ -54,7 +54,7 @@ std::vector<T> read_array(const fs::path& p) {
 std::map<std::string, std::string> all_files(const fs::path& dir) {
   std::map<std::string, std::string> files;
   for (const auto& e : fs::recursive_directory_iterator(dir))
-    if (e.is_regular_file()) files[fs::relative(e.path(), dir).string()] = read_file(e.path());
+    if (e.is_regular_file()) files[fs::relative(e.path(), dir).string()] = file_bytes(e.path());
   return files;
 }
 
@@ -75,9 +75,9 @@ struct WrittenSequence {
   Pose T_lidar_camera = Pose::Identity();
 
   explicit WrittenSequence(const fs::path& dir) {
-    std::istringstream times(read_file(dir / "times.txt"));
+    std::istringstream times(file_bytes(dir / "times.txt"));
     for (double t; times >> t;) scan_stamps.push_back(t);
-    std::istringstream pose_text(read_file(dir / "poses.txt"));
+    std::istringstream pose_text(file_bytes(dir / "poses.txt"));
     for (std::string line; std::getline(pose_text, line);) {
       std::istringstream row(line);
       Eigen::Matrix4d M = Eigen::Matrix4d::Identity();
@@ -100,7 +100,7 @@ struct WrittenSequence {
       image_stamps_ms.push_back(std::stoll(m[2]) * 1000 + std::stoll(m[3]));
       EXPECT_EQ(label_images[k].stem().string(), stem);
     }
-    std::istringstream info(read_file(dir / "camera_info.txt"));
+    std::istringstream info(file_bytes(dir / "camera_info.txt"));
     info >> camera.fx >> camera.fy >> camera.cx >> camera.cy;
     for (double& k : camera.distortion) info >> k;
     const cv::Mat first = cv::imread(label_images.at(0).string(), cv::IMREAD_UNCHANGED);
@@ -183,9 +183,9 @@ TEST(SynthSequence, WritesTheRellisLayoutConsistently) {
   EXPECT_NEAR(seq.camera.fx, 2813.643275 / 12.0, 1e-5);
   EXPECT_NEAR(seq.camera.distortion[0], -0.134313, 1e-12);
   EXPECT_TRUE(seq.T_lidar_camera.isApprox(rellis_T_lidar_camera(), 1e-7));
-  const std::string yaml = read_file(dir.path() / "transforms.yaml");
+  const std::string yaml = file_bytes(dir.path() / "transforms.yaml");
   EXPECT_TRUE(yaml.starts_with("os1_cloud_node-pylon_camera_node:\n  q:\n    w: ")) << yaml;
-  const auto meta = nlohmann::json::parse(read_file(dir.path() / "synth.json"));
+  const auto meta = nlohmann::json::parse(file_bytes(dir.path() / "synth.json"));
   EXPECT_EQ(meta["simulated"], true);
   EXPECT_EQ(meta["seed"], 1);
   EXPECT_EQ(meta["counts"]["scans"], summary.scans);
@@ -278,17 +278,17 @@ TEST(SynthSequence, CommandLineWritesASimulatedSequenceAndGuardsItsOutput) {
   const fs::path log = dir.path().string() + ".log";
   const std::string base =
       fmt::format("{} synth {} --length 2 --image-size 64x40 --seed 4", SLAMVDB_CLI_PATH, dir.path().string());
-  ASSERT_EQ(std::system((base + " > " + log.string() + " 2>&1").c_str()), 0) << read_file(log);
-  EXPECT_NE(read_file(log).find("SIMULATED"), std::string::npos);
+  ASSERT_EQ(std::system((base + " > " + log.string() + " 2>&1").c_str()), 0) << file_bytes(log);
+  EXPECT_NE(file_bytes(log).find("SIMULATED"), std::string::npos);
   EXPECT_TRUE(fs::exists(dir.path() / "synth.json"));
   EXPECT_EQ(cv::imread(sorted_files(dir.path() / kImageDir).at(0).string()).cols, 64);
   EXPECT_NE(std::system((base + " > " + log.string() + " 2>&1").c_str()), 0);
-  EXPECT_NE(read_file(log).find("--force"), std::string::npos) << read_file(log);
-  EXPECT_EQ(std::system((base + " --force > " + log.string() + " 2>&1").c_str()), 0) << read_file(log);
+  EXPECT_NE(file_bytes(log).find("--force"), std::string::npos) << file_bytes(log);
+  EXPECT_EQ(std::system((base + " --force > " + log.string() + " 2>&1").c_str()), 0) << file_bytes(log);
   const std::string bad_size =
       fmt::format("{} synth {} --force --image-size 64by40", SLAMVDB_CLI_PATH, dir.path().string());
   EXPECT_NE(std::system((bad_size + " > " + log.string() + " 2>&1").c_str()), 0);
-  EXPECT_NE(read_file(log).find("WIDTHxHEIGHT"), std::string::npos) << read_file(log);
+  EXPECT_NE(file_bytes(log).find("WIDTHxHEIGHT"), std::string::npos) << file_bytes(log);
   fs::remove(log);
 }
 
