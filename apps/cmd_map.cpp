@@ -24,7 +24,7 @@
 #include "slamvdb/pipeline/mapping_pipeline.hpp"
 #include "slamvdb/pipeline/pose_source.hpp"
 
-namespace slamvdb::cli {
+namespace slamvdb::cli::cmd_map {
 namespace {
 
 struct Options {
@@ -297,4 +297,4 @@ void add(CLI::App& root) {
 const RegisterCommand reg{add};
 
 }  // namespace
-}  // namespace slamvdb::cli
+}  // namespace slamvdb::cli::cmd_map
