@@ -179,10 +179,12 @@ void run(Options opt, const std::string& config) {
   else save_map(opt.output, map);
   // What the file holds (with submaps unloaded during the run, more than memory does now).
   const MapFileSummary saved = read_map_summary(opt.output);
-  fmt::print("map saved to {}: {} submaps, {} occupied voxels, {} semantic entries ({} {}-d) in {} world cells of the "
-             "global index, {:.1f} MB file\n",
+  fmt::print("map saved to {}: {} submaps, {} occupied voxels, {} semantic entries ({} {}-d), {:.1f} MB file{}\n",
              opt.output, saved.submaps.size(), saved.occupied_voxels, saved.semantic_voxels, opt.precision,
-             map.params().semantic.dim, map.num_index_cells(), saved.file_bytes / 1e6);
+             map.params().semantic.dim, saved.file_bytes / 1e6,
+             report.submaps_unloaded ? ""
+                                     : fmt::format(", {} world cells in the global index, {:.1f} MB in memory",
+                                                   map.num_index_cells(), map.memory_bytes() / 1e6));
 }
 
 void add(CLI::App& root) {

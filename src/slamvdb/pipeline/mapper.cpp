@@ -225,12 +225,17 @@ void Mapper::inference_loop() {
     Item* job = nullptr;
     work_cv_.wait(lock, [&] {
       if (stopping_) return true;
-      // Results count against the bound too (a spare buffer it would fill again counts once).
-      const std::size_t reusable = spare_features_.empty() ? 0 : spare_features_.back().data.size() * sizeof(float);
-      if (queued_bytes_ - reusable > options_.max_queued_bytes) return false;
+      job = nullptr;
       for (auto& item : images_)
-        if (item->state == Item::State::kWaitingForEncoder) return (job = item.get()) != nullptr;
-      return false;
+        if (item->state == Item::State::kWaitingForEncoder) {
+          job = item.get();
+          break;
+        }
+      if (!job) return false;
+      // Results count against the bound too (a spare buffer it would fill again counts once);
+      // the mapper's very next item is always encoded, or nothing could ever free the queue.
+      const std::size_t reusable = spare_features_.empty() ? 0 : spare_features_.back().data.size() * sizeof(float);
+      return queued_bytes_ - reusable <= options_.max_queued_bytes || job == next_item();
     });
     if (stopping_) return;
     job->state = Item::State::kEncoding;
