@@ -37,8 +37,6 @@ class MapFileWriter final : public SubmapStore {
   // the totals `slamvdb info` shows; memory_bytes: SemanticMap::memory_bytes() of the whole map
   // (0: not known, e.g. when submaps left memory while mapping).
   void finish(const MapInfo& info, uint64_t memory_bytes);
-  const std::filesystem::path& path() const { return path_; }
-  const MapParams& params() const { return params_; }
 
  private:
   MapFileWriter(const std::filesystem::path& path, MapParams params);
