@@ -9,10 +9,6 @@ namespace slamvdb {
 namespace fs = std::filesystem;
 using namespace store;
 
-namespace {
-constexpr int kPageSize = 65536;  // as save_map (map_store.cpp): large blobs, few overflow pages
-}  // namespace
-
 MapFileWriter::MapFileWriter(const fs::path& path, MapParams params) : path_(path), params_(std::move(params)) {
   db_ = std::make_unique<Database>(path_, SQLITE_OPEN_READWRITE | SQLITE_OPEN_NOMUTEX);
   // The rollback journal makes every commit atomic; FULL syncs make it durable on power loss too

@@ -17,10 +17,6 @@ namespace {
 
 using namespace store;
 
-// With SQLite's default 4 KiB pages only one 2 KiB occupancy row fits a page and every large blob
-// is a long overflow chain: a measured map was 15% larger and saved 1.5x slower than with 64 KiB.
-constexpr int kPageSize = 65536;
-
 void write_database(const fs::path& file, const SemanticMap& map) {
   Database db(file, SQLITE_OPEN_READWRITE | SQLITE_OPEN_NOMUTEX);
   // No journal and no syncs: the file is private until the rename, and fsynced before it.
