@@ -16,17 +16,17 @@
 
 #include "slamvdb/core/error.hpp"
 #include "slamvdb/inference/clip_text_clean.hpp"
+#include "slamvdb/testing/shared_data.hpp"
 
 namespace slamvdb {
 namespace {
 
 namespace fs = std::filesystem;
 
-const fs::path kVocab = fs::path(SLAMVDB_SOURCE_DIR) / ".." / "shared" / "clip" / "bpe_simple_vocab_16e6.txt.gz";
 const fs::path kOracle = fs::path(SLAMVDB_SOURCE_DIR) / "tests" / "python" / "clip_tokenizer_oracle.py";
 
 const ClipTokenizer& tokenizer() {
-  static const ClipTokenizer t(kVocab);
+  static const ClipTokenizer t(testing::kClipVocab);
   return t;
 }
 
@@ -205,8 +205,8 @@ TEST(ClipTokenizer, MissingOrCorruptVocabularyIsAnError) {
 TEST(ClipTokenizer, DefaultVocabularyPathFollowsEnvironment) {
   const char* saved = std::getenv("SLAMVDB_CLIP_VOCAB");
   const std::string saved_value = saved ? saved : "";
-  ::setenv("SLAMVDB_CLIP_VOCAB", kVocab.c_str(), 1);
-  EXPECT_EQ(default_clip_vocab_path(), kVocab);
+  ::setenv("SLAMVDB_CLIP_VOCAB", testing::kClipVocab.c_str(), 1);
+  EXPECT_EQ(default_clip_vocab_path(), testing::kClipVocab);
   ::setenv("SLAMVDB_CLIP_VOCAB", "/nonexistent/bpe.txt.gz", 1);
   try {
     default_clip_vocab_path();
@@ -216,13 +216,13 @@ TEST(ClipTokenizer, DefaultVocabularyPathFollowsEnvironment) {
     EXPECT_NE(std::string(e.what()).find("shared/clip"), std::string::npos) << e.what();
   }
   ::unsetenv("SLAMVDB_CLIP_VOCAB");
-  EXPECT_EQ(fs::canonical(default_clip_vocab_path()), fs::canonical(kVocab));
+  EXPECT_EQ(fs::canonical(default_clip_vocab_path()), fs::canonical(testing::kClipVocab));
   if (saved) ::setenv("SLAMVDB_CLIP_VOCAB", saved_value.c_str(), 1);
 }
 
 TEST(ClipTokenizer, ConstructionIsFast) {
   const auto start = std::chrono::steady_clock::now();
-  const ClipTokenizer t(kVocab);
+  const ClipTokenizer t(testing::kClipVocab);
   const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
   EXPECT_EQ(t.encode("tall grass"), (std::vector<int>{7771, 5922}));
   EXPECT_LT(ms, 1000.0) << "target < 150 ms on an idle core";  // loose: the suite shares 2 cores
@@ -230,7 +230,7 @@ TEST(ClipTokenizer, ConstructionIsFast) {
 
 TEST(ClipTokenizer, CliPrintsIds) {
   const std::string cli = SLAMVDB_CLI_PATH;
-  const std::string vocab = " --vocab '" + kVocab.string() + "'";
+  const std::string vocab = " --vocab '" + testing::kClipVocab.string() + "'";
   const auto json = nlohmann::json::parse(run(cli + " tokenize 'tall grass' --json" + vocab));
   std::vector<int64_t> expected(77, 0);
   expected[0] = 49406, expected[1] = 7771, expected[2] = 5922, expected[3] = 49407;
@@ -272,7 +272,7 @@ TEST(ClipTokenizer, MatchesPythonOracleOnGeneratedTexts) {
   }
   const fs::path in = temp_path("oracle_in.json"), out = temp_path("oracle_out.json");
   std::ofstream(in) << nlohmann::json(texts).dump(-1, ' ', true);
-  const std::string command = std::string(SLAMVDB_PYTHON) + " '" + kOracle.string() + "' --vocab '" + kVocab.string() + "' --json < '" +
+  const std::string command = std::string(SLAMVDB_PYTHON) + " '" + kOracle.string() + "' --vocab '" + testing::kClipVocab.string() + "' --json < '" +
                               in.string() + "' > '" + out.string() + "'";
   ASSERT_EQ(std::system(command.c_str()), 0) << command;
   const auto expected = nlohmann::json::parse(std::ifstream(out)).get<std::vector<std::vector<int>>>();

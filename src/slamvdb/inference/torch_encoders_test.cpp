@@ -16,6 +16,7 @@
 
 #include "slamvdb/core/error.hpp"
 #include "slamvdb/io/npy.hpp"
+#include "slamvdb/testing/shared_data.hpp"
 
 namespace slamvdb {
 namespace {
@@ -24,7 +25,6 @@ namespace fs = std::filesystem;
 using nlohmann::json;
 
 const fs::path kTools = fs::path(SLAMVDB_SOURCE_DIR) / "tools";
-const fs::path kVocab = fs::path(SLAMVDB_SOURCE_DIR) / ".." / "shared" / "clip" / "bpe_simple_vocab_16e6.txt.gz";
 
 std::string quoted(const fs::path& p) {
   std::string q = p.string();  // built in place: "'" + s + "'" trips GCC 12's bogus -Wrestrict
@@ -91,7 +91,7 @@ class TorchEncoders : public ::testing::Test {
     dir_ = fs::temp_directory_path() / ("slamvdb_torch_test_" + std::to_string(::getpid()));
     fs::create_directories(dir_);
     const std::string cmd = python_ + " " + quoted(kTools / "make_test_models.py") + " --out " + quoted(dir_) +
-                            " --vocab " + quoted(kVocab) + " > " + quoted(dir_ / "make.log") + " 2>&1";
+                            " --vocab " + quoted(testing::kClipVocab) + " > " + quoted(dir_ / "make.log") + " 2>&1";
     models_ok_ = std::system(cmd.c_str()) == 0;
   }
   static void TearDownTestSuite() {
@@ -195,7 +195,7 @@ TEST_F(TorchEncoders, ExportScriptsProduceLoadableModels) {
   const fs::path out = dir_ / "exported";
   for (const char* script : {"export_lseg.py", "export_clip.py"}) {
     const std::string cmd = python_ + " " + quoted(kTools / script) + " --random-init-test --out " + quoted(out) +
-                            " --vocab " + quoted(kVocab) + " > " + quoted(dir_ / "export.log") + " 2>&1";
+                            " --vocab " + quoted(testing::kClipVocab) + " > " + quoted(dir_ / "export.log") + " 2>&1";
     ASSERT_EQ(std::system(cmd.c_str()), 0) << script << ":\n" << read_text(dir_ / "export.log");
   }
   // Tiny networks: one thread (the scripts leave the count to libtorch). Warm-up checks shapes and norms.
@@ -331,7 +331,7 @@ TEST_F(TorchEncoders, SegmentCommandWritesFeaturesAndBestClassImage) {
 }
 
 TEST_F(TorchEncoders, SegmentCommandRunsTheSimulatedEncodersOnGroundTruthLabels) {
-  const fs::path fixture = fs::path(SLAMVDB_SOURCE_DIR) / ".." / "shared" / "fixtures" / "rellis3d-000104";
+  const fs::path fixture = testing::shared_dir() / "fixtures" / "rellis3d-000104";
   const fs::path image = fixture / "frame000104-1581624663_149.jpg",
                  labels = fixture / "frame000104-1581624663_149.png";
   if (!fs::exists(image) || !fs::exists(labels)) GTEST_SKIP() << "RELLIS-3D fixture not found at " << fixture;

@@ -99,22 +99,22 @@ ScanContextMatch compare_scan_contexts(const ScanContext& query, const ScanConte
   return best;
 }
 
-namespace {
-struct RingKeyCloud {
-  const std::vector<float>* keys = nullptr;
-  std::size_t dim = 0, count = 0;
-  std::size_t kdtree_get_point_count() const { return count; }
-  float kdtree_get_pt(std::size_t idx, std::size_t d) const { return (*keys)[idx * dim + d]; }
-  template <class Box>
-  bool kdtree_get_bbox(Box&) const {
-    return false;
-  }
-};
-using RingKeyTree =
-    nanoflann::KDTreeSingleIndexAdaptor<nanoflann::L2_Simple_Adaptor<float, RingKeyCloud>, RingKeyCloud, -1, std::size_t>;
-}  // namespace
-
+// The k-d tree over the ring keys (types nested here, not in an unnamed namespace: the class is
+// declared in the header, and a member of unnamed-namespace type would be a different type in
+// every translation unit that could include this file, as a unity build does).
 struct ScanContextDatabase::Tree {
+  struct RingKeyCloud {
+    const std::vector<float>* keys = nullptr;
+    std::size_t dim = 0, count = 0;
+    std::size_t kdtree_get_point_count() const { return count; }
+    float kdtree_get_pt(std::size_t idx, std::size_t d) const { return (*keys)[idx * dim + d]; }
+    template <class Box>
+    bool kdtree_get_bbox(Box&) const {
+      return false;
+    }
+  };
+  using RingKeyTree = nanoflann::KDTreeSingleIndexAdaptor<nanoflann::L2_Simple_Adaptor<float, RingKeyCloud>,
+                                                          RingKeyCloud, -1, std::size_t>;
   RingKeyCloud cloud;
   RingKeyTree index;
   Tree(const std::vector<float>& keys, std::size_t dim, std::size_t count)

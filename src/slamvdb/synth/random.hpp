@@ -6,15 +6,9 @@
 #include <cstdint>
 #include <numbers>
 
-namespace slamvdb::synth {
+#include "slamvdb/core/mix64.hpp"
 
-// SplitMix64 finaliser: a bijective 64-bit mix with full avalanche.
-constexpr uint64_t mix64(uint64_t x) {
-  x += 0x9e3779b97f4a7c15ULL;
-  x = (x ^ (x >> 30)) * 0xbf58476d1ce4e5b9ULL;
-  x = (x ^ (x >> 27)) * 0x94d049bb133111ebULL;
-  return x ^ (x >> 31);
-}
+namespace slamvdb::synth {
 
 // Independent streams of one seed, e.g. (seed, kLidarNoise, scan index); each consumer of
 // randomness gets its own stream so changing one part never shifts another's numbers.

@@ -1,4 +1,5 @@
 #include "slamvdb/training/pixel_samples.hpp"
+#include "slamvdb/core/mix64.hpp"
 
 #include <fmt/format.h>
 
@@ -12,20 +13,13 @@
 namespace slamvdb {
 namespace {
 
-// splitmix64: portable, so the same seed samples the same pixels on every platform.
-uint64_t mix(uint64_t x) {
-  x += 0x9E3779B97F4A7C15ull;
-  x = (x ^ (x >> 30)) * 0xBF58476D1CE4E5B9ull;
-  x = (x ^ (x >> 27)) * 0x94D049BB133111EBull;
-  return x ^ (x >> 31);
-}
-
 // The first `count` entries of `items` become a uniform sample without replacement (partial
-// Fisher-Yates with our generator: std::shuffle's algorithm is implementation-defined).
+// Fisher-Yates with our generator, mix64: std::shuffle's algorithm is implementation-defined, and
+// the same seed samples the same pixels on every platform).
 void choose(std::vector<int>& items, std::size_t count, uint64_t& state) {
   count = std::min(count, items.size());
   for (std::size_t i = 0; i < count; ++i) {
-    state = mix(state);
+    state = mix64(state);
     const std::size_t j = i + static_cast<std::size_t>(state % (items.size() - i));
     std::swap(items[i], items[j]);
   }
@@ -71,7 +65,7 @@ SampleCounts sample_pixels(const FeatureMap& features, std::span<const int> targ
   for (std::size_t i = 0; i < pixels; ++i)
     if (targets[i] >= 0) by_class[targets[i]].push_back(static_cast<int>(i)), ++counts.labelled;
 
-  uint64_t state = mix(seed);
+  uint64_t state = mix64(seed);
   std::vector<int> chosen;
   if (sampling == PixelSampling::kUniform) {
     for (const auto& [k, list] : by_class) chosen.insert(chosen.end(), list.begin(), list.end());

@@ -1,4 +1,5 @@
 #include "slamvdb/training/query_trainer.hpp"
+#include "slamvdb/core/mix64.hpp"
 
 #include <fmt/format.h>
 #include <torch/torch.h>
@@ -13,13 +14,6 @@ namespace slamvdb {
 namespace {
 
 namespace F = torch::nn::functional;
-
-uint64_t mix(uint64_t x) {  // splitmix64, for a portable shuffle
-  x += 0x9E3779B97F4A7C15ull;
-  x = (x ^ (x >> 30)) * 0xBF58476D1CE4E5B9ull;
-  x = (x ^ (x >> 27)) * 0x94D049BB133111EBull;
-  return x ^ (x >> 31);
-}
 
 // One torch thread while optimising: the products are tiny (batch x dim x classes), and a fixed
 // thread count keeps every reduction in the same order, so a seed gives the same vectors.
@@ -94,9 +88,9 @@ double QueryTrainer::train_epoch(const PixelSamples& samples, const StepProgress
 
   std::vector<std::size_t> order(samples.size());
   std::iota(order.begin(), order.end(), std::size_t{0});
-  uint64_t state = mix(impl_->options.seed ^ mix(0xE90C0000u + static_cast<uint64_t>(impl_->epoch)));
+  uint64_t state = mix64(impl_->options.seed ^ mix64(0xE90C0000u + static_cast<uint64_t>(impl_->epoch)));
   for (std::size_t i = order.size(); i > 1; --i) {  // Fisher-Yates with a portable generator
-    state = mix(state);
+    state = mix64(state);
     std::swap(order[i - 1], order[state % i]);
   }
   const std::size_t batch = static_cast<std::size_t>(impl_->options.batch_size);

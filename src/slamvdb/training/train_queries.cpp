@@ -1,4 +1,5 @@
 #include "slamvdb/training/train_queries.hpp"
+#include "slamvdb/core/mix64.hpp"
 
 #include <fmt/format.h>
 
@@ -15,13 +16,6 @@ namespace {
 using Clock = std::chrono::steady_clock;
 
 double seconds_since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
-
-uint64_t mix(uint64_t x) {  // splitmix64
-  x += 0x9E3779B97F4A7C15ull;
-  x = (x ^ (x >> 30)) * 0xBF58476D1CE4E5B9ull;
-  x = (x ^ (x >> 27)) * 0x94D049BB133111EBull;
-  return x ^ (x >> 31);
-}
 
 QueryMatrix text_init(TextEncoder& text, const Ontology& ontology, int dim) {
   if (text.dim() != dim)
@@ -131,7 +125,7 @@ QuerySet train_queries(std::span<const ImageRecord> images, FeatureSource& featu
     const bool is_val = i >= report.train_images;
     const SampleCounts counts =
         sample_pixels(map, targets, options.pixels_per_image, is_val ? PixelSampling::kUniform : options.sampling,
-                      mix(options.trainer.seed ^ mix(i)), is_val ? *val : *train);
+                      mix64(options.trainer.seed ^ mix64(i)), is_val ? *val : *train);
     report.dropped_pixels += counts.bad;
     if (callbacks.image_progress) callbacks.image_progress(i + 1, labelled.size());
   }
