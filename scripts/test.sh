@@ -1,15 +1,14 @@
 #!/usr/bin/env bash
 # Every check, one stage after the other; CI runs exactly this (.ci/run), from a clean clone:
-#   setup          scripts/setup.sh: installs, builds in Release (build/)
+#   setup          scripts/setup.sh: installs, builds in Release (build/, a unity build)
 #   release tests  every test (unit, integration, CLI, Python, viewer) with CTest
 #   tsan           scripts/test_tsan.sh: the concurrency tests (map, streaming mapper) under TSan
-# and with SLAMVDB_SANITIZERS=1 also (about 28 more minutes on 2 cores, so not yet in CI; README,
-# "Sanitizers"):
 #   asan build     scripts/build_asan.sh: the test suite under ASan + UBSan (GCC, build-asan/)
 #   asan tests     scripts/test_asan.sh: that suite (any report fails the test)
 #   fuzz build     FUZZ=1 scripts/build_asan.sh: the libFuzzer harnesses (clang, build-fuzz/)
 #   fuzz runs      scripts/fuzz.sh: every harness for FUZZ_SECONDS (default 20) s
-# Each stage's wall time is printed at the end, also when a stage fails.
+# SLAMVDB_SANITIZERS=0 leaves out the last four (the quick local check). Each stage's wall time is
+# printed at the end, also when a stage fails (README, "Bad input, limits, sanitizers and fuzzing").
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -32,7 +31,7 @@ trap print_stage_times EXIT
 stage setup scripts/setup.sh
 stage "release tests" ctest --test-dir build --output-on-failure -j"$(nproc)" --timeout 900
 stage tsan scripts/test_tsan.sh
-if [ "${SLAMVDB_SANITIZERS:-0}" = 1 ]; then
+if [ "${SLAMVDB_SANITIZERS:-1}" = 1 ]; then
   stage "asan build" scripts/build_asan.sh
   stage "asan tests" scripts/test_asan.sh
   stage "fuzz build" env FUZZ=1 scripts/build_asan.sh

@@ -7,6 +7,7 @@
 
 #include "slamvdb/core/types.hpp"
 #include "slamvdb/synth/world.hpp"
+#include "slamvdb/testing/test_scale.hpp"
 
 namespace slamvdb::localization::testing {
 

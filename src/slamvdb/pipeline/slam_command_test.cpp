@@ -12,6 +12,7 @@
 #include "slamvdb/synth/sequence_writer.hpp"
 #include "slamvdb/testing/run_command.hpp"
 #include "slamvdb/testing/temp_dir.hpp"
+#include "slamvdb/testing/test_scale.hpp"
 
 namespace slamvdb {
 namespace {
@@ -29,6 +30,7 @@ TEST(SlamCommand, MapOnOwnPosesAgreesWithTheGroundTruthMap) {
   config.min_loop_m = 70.0;  // revisited after 75 m: a loop to close
   config.image_width = 160;
   config.image_height = 100;
+  config.lidar.columns = testing::test_size(1024, 512);  // slamvdb/testing/test_scale.hpp
   synth::write_synthetic_sequence(config, seq, true);
 
   const std::string cli = shell_quote(SLAMVDB_CLI_PATH);
