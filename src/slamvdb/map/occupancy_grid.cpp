@@ -124,10 +124,8 @@ ScanIntegrationStats OccupancyGrid::integrate_scan(const std::vector<Vec3f>& poi
   const uint32_t scan = ++scan_counter_;
 
   struct Ray {
-    Vec3d to;          // end of the cleared segment, cell units
-    VoxelKey hit_key;  // the return's voxel when it is inserted as occupied
-    bool hit;
-    uint32_t tile;     // direction cell (see below)
+    Vec3d to;       // end of the cleared segment, cell units
+    uint32_t tile;  // direction cell (see below)
   };
   // Rays are grouped by direction: the cells of a cube map around the sensor, kTiles x kTiles per
   // face (about 5.6 degrees at 16).
@@ -141,40 +139,12 @@ ScanIntegrationStats OccupancyGrid::integrate_scan(const std::vector<Vec3f>& poi
     return static_cast<uint32_t>(((2 * face + (d[face] < 0)) * kTiles + iu) * kTiles + iv);
   };
   const Vec3d from = origin * inv_voxel_size_;
-  std::vector<Ray> rays;
-  rays.reserve(points_sensor.size());
-  for (const Vec3f& p : points_sensor) {
-    if (!p.allFinite()) {
-      ++stats.dropped_nonfinite;
-      continue;
-    }
-    const double range = p.cast<double>().norm();
-    if (range == 0.0) {
-      ++stats.dropped_no_return;
-      continue;
-    }
-    if (range < params_.min_point_range) {
-      ++stats.dropped_too_close;
-      continue;
-    }
-    const bool hit = range <= params_.max_point_range;
-    const Vec3d dir = R * (p.cast<double>() / range);
-    const double length = hit ? range : params_.max_point_range;
-    // Both ends of what the ray touches must be representable: the end point (a hit) and the end
-    // of the cleared segment.
-    const Vec3d end = (origin + dir * length) * inv_voxel_size_;
-    const Vec3d to = (origin + dir * std::min(length, params_.max_clearing_range)) * inv_voxel_size_;
-    if (!in_grid_extent(end) || !in_grid_extent(to)) {
-      ++stats.dropped_out_of_extent;
-      continue;
-    }
-    if (!hit) ++stats.beyond_max_range;
-    rays.push_back({to, key_of_point<VoxelKey>(end, 1.0), hit, tile_of(dir)});
-  }
-
+  // Clearing rays stay within `reach` voxels of the sensor's voxel.
+  const int reach = static_cast<int>(std::ceil(params_.max_clearing_range * inv_voxel_size_)) + 1;
+  constexpr int kMaxWindowHalf = 32;  // 65^3 blocks: 2 MB of pointers, 17 MB of bitmap (below)
   BlockWindow window;
   {
-    const int half = std::min(16, static_cast<int>(params_.max_clearing_range * inv_voxel_size_ / kBlockSide) + 2);
+    const int half = std::min(kMaxWindowHalf, (reach + kBlockSide - 1) / kBlockSide + 1);
     const BlockKey center = block_of(key_of_point<VoxelKey>(from, 1.0));
     window.lo = BlockKey(center.x() - half, center.y() - half, center.z() - half);
     window.side = 2 * half + 1;
@@ -224,13 +194,49 @@ ScanIntegrationStats OccupancyGrid::integrate_scan(const std::vector<Vec3f>& poi
     }
   };
 
-  // Hits first, all of them, so a voxel that is both an end point and on another ray counts as a
-  // hit (OctoMap's rule: the free set excludes the occupied set).
+  // Rays are prepared and their hits applied in parallel, all hits before any miss, so that a voxel
+  // that is both an end point and on another ray counts as a hit (OctoMap's rule: the free set
+  // excludes the occupied set). A dropped ray gets the tile kNoTile.
+  constexpr uint32_t kNoTile = 6 * kTiles * kTiles;
+  std::vector<Ray> rays(points_sensor.size());
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, rays.size(), 2048), [&](const tbb::blocked_range<std::size_t>& rr) {
     ScanContext& ctx = contexts.local();
+    ScanIntegrationStats& st = ctx.stats;
     for (std::size_t j = rr.begin(); j != rr.end(); ++j) {
-      if (!rays[j].hit) continue;
-      const VoxelKey& k = rays[j].hit_key;
+      Ray& ray = rays[j];
+      ray.tile = kNoTile;
+      const Vec3f& p = points_sensor[j];
+      if (!p.allFinite()) {
+        ++st.dropped_nonfinite;
+        continue;
+      }
+      const double range = p.cast<double>().norm();
+      if (range == 0.0) {
+        ++st.dropped_no_return;
+        continue;
+      }
+      if (range < params_.min_point_range) {
+        ++st.dropped_too_close;
+        continue;
+      }
+      const bool hit = range <= params_.max_point_range;
+      const Vec3d dir = R * (p.cast<double>() / range);
+      const double length = hit ? range : params_.max_point_range;
+      // Both ends of what the ray touches must be representable: the end point (a hit) and the end
+      // of the cleared segment.
+      const Vec3d end = (origin + dir * length) * inv_voxel_size_;
+      const Vec3d to = (origin + dir * std::min(length, params_.max_clearing_range)) * inv_voxel_size_;
+      if (!in_grid_extent(end) || !in_grid_extent(to)) {
+        ++st.dropped_out_of_extent;
+        continue;
+      }
+      ray.to = to;
+      ray.tile = tile_of(dir);
+      if (!hit) {
+        ++st.beyond_max_range;
+        continue;
+      }
+      const VoxelKey k = key_of_point<VoxelKey>(end, 1.0);
       if (Block* b = find_block(block_of(k))) update(*b, k, params_.log_odds_hit, ctx);
       else ctx.pending.push_back(k);
     }
@@ -241,30 +247,38 @@ ScanIntegrationStats OccupancyGrid::integrate_scan(const std::vector<Vec3f>& poi
   // the cube the clearing range reaches around the sensor: most of a scan's ~10^7 crossings are of
   // voxels an earlier ray crossed already, and a bit test stays in cache where the cells (8 bytes,
   // spread over blocks) do not. The update pass then visits every marked voxel once, in parallel
-  // over rows, so no two threads touch the same voxel and the result is exactly the union of the
+  // over blocks, so no two threads touch the same voxel and the result is exactly the union of the
   // rays whatever the threads. Rays are cast grouped by direction (cube-map tiles) so that
   // neighbouring rays mark neighbouring words.
-  std::vector<uint32_t> start(kTiles * kTiles * 6 + 1, 0), order(rays.size());
+  std::vector<uint32_t> start(kNoTile + 2, 0), order(rays.size());
   for (const Ray& r : rays) ++start[r.tile + 1];
   std::partial_sum(start.begin(), start.end(), start.begin());
   {
     std::vector<uint32_t> next(start.begin(), start.end() - 1);
     for (uint32_t i = 0; i < rays.size(); ++i) order[next[rays[i].tile]++] = i;
   }
-  const VoxelKey origin_key = key_of_point<VoxelKey>(from, 1.0);
-  const int reach = static_cast<int>(std::ceil(params_.max_clearing_range * inv_voxel_size_)) + 1;
-  const int64_t side = 2 * int64_t{reach} + 1, row_words = (side + 63) / 64;
-  const VoxelKey lo(origin_key.x() - reach, origin_key.y() - reach, origin_key.z() - reach);
-  const auto num_words = static_cast<std::size_t>(row_words * side * side);
-  // Left all zero between scans (the update pass clears the words it reads); beyond 32 MB (a
-  // clearing range of many hundred voxels) rays update the cells directly instead.
+  // One 8^3 brick of bits (a cache line) per block of the window, same order: a ray crosses a
+  // brick in several steps, and the update pass finds each brick's block once. Left all zero
+  // between scans (the update pass clears what it reads). When the clearing range exceeds the
+  // window, rays update the cells directly instead.
   thread_local std::vector<uint64_t> bitmap;
-  const bool use_bitmap = num_words <= (std::size_t{32} << 20) / sizeof(uint64_t);
-  if (use_bitmap && bitmap.size() < num_words) bitmap.resize(num_words, 0);
+  const bool use_bitmap = window.side < 2 * kMaxWindowHalf + 1;
+  if (use_bitmap && bitmap.size() < window.slots.size() * 8) bitmap.resize(window.slots.size() * 8, 0);
   uint64_t* const words = bitmap.data();  // this thread's bitmap, also for the workers
   const float miss = params_.log_odds_miss;
-  tbb::parallel_for(tbb::blocked_range<uint32_t>(0, kTiles * kTiles * 6, 1), [&](const tbb::blocked_range<uint32_t>& tr) {
+  tbb::parallel_for(tbb::blocked_range<uint32_t>(0, kNoTile, 1), [&](const tbb::blocked_range<uint32_t>& tr) {
     ScanContext& ctx = contexts.local();
+    // Copies: the compiler cannot keep values behind references in registers across the atomic
+    // writes below.
+    const int lx = window.lo.x() * kBlockSide, ly = window.lo.y() * kBlockSide, lz = window.lo.z() * kBlockSide;
+    const int side = window.side;
+    auto mark = [=](const VoxelKey& k) {
+      const int x = k.x() - lx, y = k.y() - ly, z = k.z() - lz;
+      const int brick = ((z >> kBlockBits) * side + (y >> kBlockBits)) * side + (x >> kBlockBits);
+      std::atomic_ref<uint64_t> w(words[brick * 8 + (z & 7)]);
+      const uint64_t m = uint64_t{1} << (((y & 7) << 3) | (x & 7));
+      if (!(w.load(std::memory_order_relaxed) & m)) w.fetch_or(m, std::memory_order_relaxed);
+    };
     BlockKey cached_key(std::numeric_limits<int>::min(), 0, 0);
     Block* block = nullptr;
     auto visit = [&](const VoxelKey& k) {
@@ -273,12 +287,6 @@ ScanIntegrationStats OccupancyGrid::integrate_scan(const std::vector<Vec3f>& poi
       if (block) update(*block, k, miss, ctx);
       else ctx.pending.push_back(k);
     };
-    auto mark = [&](const VoxelKey& k) {
-      const int64_t x = k.x() - lo.x();
-      std::atomic_ref<uint64_t> w(words[((k.z() - lo.z()) * side + (k.y() - lo.y())) * row_words + (x >> 6)]);
-      const uint64_t m = uint64_t{1} << (x & 63);
-      if (!(w.load(std::memory_order_relaxed) & m)) w.fetch_or(m, std::memory_order_relaxed);
-    };
     for (uint32_t j = start[tr.begin()]; j != start[tr.end()]; ++j) {
       const Ray& r = rays[order[j]];
       if (use_bitmap) traverse_voxels(from, r.to, mark);
@@ -286,22 +294,22 @@ ScanIntegrationStats OccupancyGrid::integrate_scan(const std::vector<Vec3f>& poi
     }
   });
   if (use_bitmap)
-    tbb::parallel_for(tbb::blocked_range<int64_t>(0, side * side, 64), [&](const tbb::blocked_range<int64_t>& rows) {
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, window.slots.size(), 16), [&](const tbb::blocked_range<std::size_t>& br) {
       ScanContext& ctx = contexts.local();
-      BlockKey cached_key(std::numeric_limits<int>::min(), 0, 0);
-      Block* block = nullptr;
-      for (int64_t row = rows.begin(); row != rows.end(); ++row) {
-        const int y = lo.y() + static_cast<int>(row % side), z = lo.z() + static_cast<int>(row / side);
-        for (int64_t xw = 0; xw < row_words; ++xw) {
-          uint64_t& word = words[row * row_words + xw];
-          for (uint64_t bits = std::exchange(word, 0); bits; bits &= bits - 1) {
-            const VoxelKey k(lo.x() + static_cast<int>(xw * 64 + __builtin_ctzll(bits)), y, z);
-            const BlockKey bk = block_of(k);
-            if (bk != cached_key) cached_key = bk, block = find_block(bk);
-            if (block) update(*block, k, miss, ctx);
-            else ctx.pending.push_back(k);
+      const auto side = static_cast<std::size_t>(window.side);
+      for (std::size_t brick = br.begin(); brick != br.end(); ++brick) {
+        uint64_t* w = words + brick * 8;
+        if (!(w[0] | w[1] | w[2] | w[3] | w[4] | w[5] | w[6] | w[7])) continue;
+        const BlockKey bk(window.lo.x() + static_cast<int>(brick % side),
+                          window.lo.y() + static_cast<int>(brick / side % side),
+                          window.lo.z() + static_cast<int>(brick / (side * side)));
+        Block* const block = window.slots[brick];
+        for (int z = 0; z < 8; ++z)
+          for (uint64_t bits = std::exchange(w[z], 0); bits; bits &= bits - 1) {
+            const int i = (z << 6) | __builtin_ctzll(bits);  // the voxel's index in its block
+            if (block) update(*block, voxel_of(bk, i), miss, ctx);
+            else ctx.pending.push_back(voxel_of(bk, i));
           }
-        }
       }
     });
   apply_pending(miss);
