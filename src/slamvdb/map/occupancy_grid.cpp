@@ -8,7 +8,6 @@
 #include <atomic>
 #include <limits>
 #include <numeric>
-#include <utility>
 
 #include "slamvdb/core/error.hpp"
 
@@ -258,13 +257,13 @@ ScanIntegrationStats OccupancyGrid::integrate_scan(const std::vector<Vec3f>& poi
     for (uint32_t i = 0; i < rays.size(); ++i) order[next[rays[i].tile]++] = i;
   }
   // One 8^3 brick of bits (a cache line) per block of the window, same order: a ray crosses a
-  // brick in several steps, and the update pass finds each brick's block once. Left all zero
-  // between scans (the update pass clears what it reads). When the clearing range exceeds the
+  // brick in several steps, and the update pass finds each brick's block once. Allocated per scan
+  // (about 1.5 MB at the defaults): a buffer kept per thread could be reused by a scan of another
+  // map that this thread picks up while it waits inside ours. When the clearing range exceeds the
   // window, rays update the cells directly instead.
-  thread_local std::vector<uint64_t> bitmap;
   const bool use_bitmap = window.side < 2 * kMaxWindowHalf + 1;
-  if (use_bitmap && bitmap.size() < window.slots.size() * 8) bitmap.resize(window.slots.size() * 8, 0);
-  uint64_t* const words = bitmap.data();  // this thread's bitmap, also for the workers
+  std::vector<uint64_t> bitmap(use_bitmap ? window.slots.size() * 8 : 0);
+  uint64_t* const words = bitmap.data();
   const float miss = params_.log_odds_miss;
   tbb::parallel_for(tbb::blocked_range<uint32_t>(0, kNoTile, 1), [&](const tbb::blocked_range<uint32_t>& tr) {
     ScanContext& ctx = contexts.local();
@@ -305,7 +304,7 @@ ScanIntegrationStats OccupancyGrid::integrate_scan(const std::vector<Vec3f>& poi
                           window.lo.z() + static_cast<int>(brick / (side * side)));
         Block* const block = window.slots[brick];
         for (int z = 0; z < 8; ++z)
-          for (uint64_t bits = std::exchange(w[z], 0); bits; bits &= bits - 1) {
+          for (uint64_t bits = w[z]; bits; bits &= bits - 1) {
             const int i = (z << 6) | __builtin_ctzll(bits);  // the voxel's index in its block
             if (block) update(*block, voxel_of(bk, i), miss, ctx);
             else ctx.pending.push_back(voxel_of(bk, i));
