@@ -17,18 +17,9 @@ inline std::filesystem::path fixture_dir() {
   return std::filesystem::path(SLAMVDB_SOURCE_DIR) / ".." / "shared" / "fixtures" / "rellis3d-000104";
 }
 
-// Points in the LiDAR frame; returns at the origin (no return) removed, as the map would drop them.
-inline std::vector<Vec3f> benchmark_scan(bool* is_real = nullptr) {
+// The simulated 64 x 2048 scan of a ground plane and walls (LiDAR frame).
+inline std::vector<Vec3f> synthetic_scan() {
   std::vector<Vec3f> pts;
-  std::ifstream in(fixture_dir() / "000104.bin", std::ios::binary);
-  if (in) {
-    float v[4];
-    while (in.read(reinterpret_cast<char*>(v), sizeof v))
-      if (v[0] != 0 || v[1] != 0 || v[2] != 0) pts.emplace_back(v[0], v[1], v[2]);
-    if (is_real) *is_real = true;
-    return pts;
-  }
-  if (is_real) *is_real = false;
   std::mt19937 rng(1);
   std::normal_distribution<float> noise(0.0f, 0.02f);
   for (int r = 0; r < 64; ++r) {
@@ -44,6 +35,24 @@ inline std::vector<Vec3f> benchmark_scan(bool* is_real = nullptr) {
     }
   }
   return pts;
+}
+
+// The real RELLIS-3D scan (LiDAR frame), returns at the origin (no return) removed, as the map would
+// drop them; empty when the fixture is not there.
+inline std::vector<Vec3f> real_scan() {
+  std::vector<Vec3f> pts;
+  std::ifstream in(fixture_dir() / "000104.bin", std::ios::binary);
+  float v[4];
+  while (in && in.read(reinterpret_cast<char*>(v), sizeof v))
+    if (v[0] != 0 || v[1] != 0 || v[2] != 0) pts.emplace_back(v[0], v[1], v[2]);
+  return pts;
+}
+
+// The real scan when the fixture is there, else the synthetic one.
+inline std::vector<Vec3f> benchmark_scan(bool* is_real = nullptr) {
+  std::vector<Vec3f> pts = real_scan();
+  if (is_real) *is_real = !pts.empty();
+  return pts.empty() ? synthetic_scan() : pts;
 }
 
 // The RELLIS-3D camera (fixture camera_info.txt and published distortion) and its mounting.

@@ -27,10 +27,18 @@ Pose scan_pose(int i) {
   return T;
 }
 
-// Argument: worker threads (OctoMap's insertion is single-threaded).
+// Scan argument: 0 = the synthetic scan, 1 = the real RELLIS-3D scan (skipped without the fixture).
+std::vector<Vec3f> scan_or_skip(benchmark::State& state, int64_t which) {
+  std::vector<Vec3f> scan = which == 0 ? bench::synthetic_scan() : bench::real_scan();
+  if (scan.empty()) state.SkipWithError("no RELLIS-3D fixture in ../shared/fixtures");
+  return scan;
+}
+
+// Arguments: worker threads (OctoMap's insertion is single-threaded), scan.
 void BM_SlamvdbIntegrateScan(benchmark::State& state) {
   const tbb::global_control threads(tbb::global_control::max_allowed_parallelism, state.range(0));
-  const auto scan = bench::benchmark_scan();
+  const auto scan = scan_or_skip(state, state.range(1));
+  if (scan.empty()) return;
   OccupancyGrid grid(octomap_equivalent_params());
   grid.integrate_scan(scan, scan_pose(0));  // steady state: the map already holds the area
   int i = 1;
@@ -38,7 +46,7 @@ void BM_SlamvdbIntegrateScan(benchmark::State& state) {
   state.counters["points"] = static_cast<double>(scan.size());
   state.counters["points/s"] = benchmark::Counter(static_cast<double>(scan.size()), benchmark::Counter::kIsIterationInvariantRate);
 }
-BENCHMARK(BM_SlamvdbIntegrateScan)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_SlamvdbIntegrateScan)->ArgsProduct({{1, 2}, {0, 1}})->ArgNames({"threads", "real"})->Unit(benchmark::kMillisecond)->UseRealTime();
 
 void BM_SlamvdbVoxelMapIntegrateScan(benchmark::State& state) {  // with the semantic-erase hook
   const auto scan = bench::benchmark_scan();
@@ -52,7 +60,8 @@ void BM_SlamvdbVoxelMapIntegrateScan(benchmark::State& state) {  // with the sem
 BENCHMARK(BM_SlamvdbVoxelMapIntegrateScan)->Unit(benchmark::kMillisecond)->UseRealTime();
 
 void BM_OctoMapInsertPointCloud(benchmark::State& state) {
-  const auto scan = bench::benchmark_scan();
+  const auto scan = scan_or_skip(state, state.range(0));
+  if (scan.empty()) return;
   const auto p = octomap_equivalent_params();
   octomap::OcTree tree(p.voxel_size);
   tree.setProbHit(0.7);
@@ -75,7 +84,7 @@ void BM_OctoMapInsertPointCloud(benchmark::State& state) {
   for (auto _ : state) insert(i++);
   state.counters["points"] = static_cast<double>(scan.size());
 }
-BENCHMARK(BM_OctoMapInsertPointCloud)->Unit(benchmark::kMillisecond)->UseRealTime()->MinTime(3.0);
+BENCHMARK(BM_OctoMapInsertPointCloud)->Arg(0)->Arg(1)->ArgName("real")->Unit(benchmark::kMillisecond)->UseRealTime()->MinTime(3.0);
 
 }  // namespace
 }  // namespace slamvdb

@@ -57,7 +57,22 @@ OccupancyGrid::Block& OccupancyGrid::block_at(const BlockKey& block_key) {
 struct OccupancyGrid::ScanContext {
   ScanIntegrationStats stats;
   std::vector<VoxelKey> freed;
-  std::vector<uint32_t> deferred;  // rays that reached a block that does not exist yet
+  std::vector<VoxelKey> pending;  // voxels of blocks that do not exist yet (created serially)
+};
+
+// Pointers to the blocks of the cube around the sensor that clearing rays reach, so that casting
+// finds a block by indexing instead of hashing (a hash lookup costs more than the DDA steps a ray
+// takes inside one block). nullptr: the block does not exist yet. Blocks outside it are hashed.
+struct OccupancyGrid::BlockWindow {
+  BlockKey lo;
+  int side = 0;
+  std::vector<Block*> slots;
+  Block** slot(const BlockKey& b) {
+    const auto x = static_cast<unsigned>(b.x() - lo.x()), y = static_cast<unsigned>(b.y() - lo.y()),
+               z = static_cast<unsigned>(b.z() - lo.z());
+    const auto n = static_cast<unsigned>(side);
+    return x < n && y < n && z < n ? &slots[(z * n + y) * n + x] : nullptr;
+  }
 };
 
 void OccupancyGrid::set_occupied_bit(Block& b, int i, bool occupied) {
@@ -108,123 +123,196 @@ ScanIntegrationStats OccupancyGrid::integrate_scan(const std::vector<Vec3f>& poi
   const uint32_t scan = ++scan_counter_;
 
   struct Ray {
-    Vec3d dir;     // unit, world frame
-    double range;  // metres
-    bool hit;      // endpoint inserted as occupied
+    Vec3d to;       // end of the cleared segment, cell units
+    uint32_t tile;  // direction cell (see below)
   };
-  std::vector<Ray> rays;
-  rays.reserve(points_sensor.size());
-  for (const Vec3f& p : points_sensor) {
-    if (!p.allFinite()) {
-      ++stats.dropped_nonfinite;
-      continue;
-    }
-    const double range = p.cast<double>().norm();
-    if (range == 0.0) {
-      ++stats.dropped_no_return;
-      continue;
-    }
-    if (range < params_.min_point_range) {
-      ++stats.dropped_too_close;
-      continue;
-    }
-    const bool hit = range <= params_.max_point_range;
-    const Vec3d dir = R * (p.cast<double>() / range);
-    const double length = hit ? range : params_.max_point_range;
-    // Both ends of what the ray touches must be representable: the end point (a hit) and the end
-    // of the cleared segment.
-    if (!in_extent(origin + dir * length) || !in_extent(origin + dir * std::min(length, params_.max_clearing_range))) {
-      ++stats.dropped_out_of_extent;
-      continue;
-    }
-    if (!hit) ++stats.beyond_max_range;
-    rays.push_back({dir, length, hit});
-  }
-
-  // Rays are cast in parallel. A voxel is updated only by the thread that moves its stamp to this
-  // scan (at most one update per voxel per scan). The block table is read-only while threads run:
-  // a ray that needs a new block is deferred; its blocks are created serially and it is cast
-  // again, skipping the voxels it already stamped, so a replay never updates a voxel twice.
-  tbb::enumerable_thread_specific<ScanContext> contexts;
+  // Rays are grouped by direction: the cells of a cube map around the sensor, kTiles x kTiles per
+  // face (about 5.6 degrees at 16).
+  constexpr int kTiles = 16;
+  auto tile_of = [](const Vec3d& d) {
+    const Vec3d a = d.cwiseAbs();
+    const int face = a.x() >= a.y() && a.x() >= a.z() ? 0 : (a.y() >= a.z() ? 1 : 2);
+    const double m = a[face], u = d[(face + 1) % 3] / m, v = d[(face + 2) % 3] / m;
+    const int iu = std::min(kTiles - 1, static_cast<int>((u + 1) * (kTiles / 2))),
+              iv = std::min(kTiles - 1, static_cast<int>((v + 1) * (kTiles / 2)));
+    return static_cast<uint32_t>(((2 * face + (d[face] < 0)) * kTiles + iu) * kTiles + iv);
+  };
   const Vec3d from = origin * inv_voxel_size_;
+  // Clearing rays stay within `reach` voxels of the sensor's voxel.
+  const int reach = static_cast<int>(std::ceil(params_.max_clearing_range * inv_voxel_size_)) + 1;
+  constexpr int kMaxWindowHalf = 32;  // 65^3 blocks: 2 MB of pointers, 17 MB of bitmap (below)
+  BlockWindow window;
+  {
+    const int half = std::min(kMaxWindowHalf, (reach + kBlockSide - 1) / kBlockSide + 1);
+    const BlockKey center = block_of(key_of_point<VoxelKey>(from, 1.0));
+    window.lo = BlockKey(center.x() - half, center.y() - half, center.z() - half);
+    window.side = 2 * half + 1;
+    window.slots.assign(static_cast<std::size_t>(window.side) * window.side * window.side, nullptr);
+    const RegionKey rlo = region_of(window.lo);
+    const int last = window.side - 1;
+    const RegionKey rhi = region_of(BlockKey(window.lo.x() + last, window.lo.y() + last, window.lo.z() + last));
+    for (int x = rlo.x(); x <= rhi.x(); ++x)
+      for (int y = rlo.y(); y <= rhi.y(); ++y)
+        for (int z = rlo.z(); z <= rhi.z(); ++z) {
+          const auto it = regions_.find(RegionKey(x, y, z));
+          if (it == regions_.end()) continue;
+          for (const auto& [bk, block] : it->second)
+            if (Block** s = window.slot(bk)) *s = block;
+        }
+  }
+  auto find_block = [&](const BlockKey& bk) -> Block* {
+    if (Block** s = window.slot(bk)) return *s;
+    const auto it = blocks_.find(bk);
+    return it == blocks_.end() ? nullptr : it->second.get();
+  };
 
-  // serial = false: defer the ray at a missing block; serial = true: create blocks as needed.
-  auto cast = [&](const Ray& r, uint32_t ray_index, bool hits, ScanContext& ctx, bool serial) {
+  // One update per voxel per scan: a voxel is updated only by the thread that moves its stamp to
+  // this scan. The block table is read-only while threads run: voxels of missing blocks are
+  // collected and updated serially once their blocks exist.
+  tbb::enumerable_thread_specific<ScanContext> contexts;
+  auto update = [&](Block& b, const VoxelKey& key, float delta, ScanContext& ctx) {
+    const int i = index_in_block(key);
+    uint32_t& stamp = b.cells[i].stamp;
+    if (std::atomic_ref<uint32_t>(stamp).load(std::memory_order_relaxed) == scan) return;
+    if (std::atomic_ref<uint32_t>(stamp).exchange(scan, std::memory_order_relaxed) == scan) return;
+    update_voxel(b, key, i, delta, ctx);
+  };
+  auto apply_pending = [&](float delta) {
+    ScanContext& mine = contexts.local();
+    for (ScanContext& ctx : contexts) {
+      for (const VoxelKey& k : ctx.pending) {
+        const BlockKey bk = block_of(k);
+        Block* b = find_block(bk);
+        if (!b) {
+          b = &block_at(bk);
+          if (Block** s = window.slot(bk)) *s = b;
+        }
+        update(*b, k, delta, mine);
+      }
+      ctx.pending.clear();
+    }
+  };
+
+  // Rays are prepared and their hits applied in parallel, all hits before any miss, so that a voxel
+  // that is both an end point and on another ray counts as a hit (OctoMap's rule: the free set
+  // excludes the occupied set). A dropped ray gets the tile kNoTile.
+  constexpr uint32_t kNoTile = 6 * kTiles * kTiles;
+  std::vector<Ray> rays(points_sensor.size());
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, rays.size(), 2048), [&](const tbb::blocked_range<std::size_t>& rr) {
+    ScanContext& ctx = contexts.local();
+    ScanIntegrationStats& st = ctx.stats;
+    for (std::size_t j = rr.begin(); j != rr.end(); ++j) {
+      Ray& ray = rays[j];
+      ray.tile = kNoTile;
+      const Vec3f& p = points_sensor[j];
+      if (!p.allFinite()) {
+        ++st.dropped_nonfinite;
+        continue;
+      }
+      const double range = p.cast<double>().norm();
+      if (range == 0.0) {
+        ++st.dropped_no_return;
+        continue;
+      }
+      if (range < params_.min_point_range) {
+        ++st.dropped_too_close;
+        continue;
+      }
+      const bool hit = range <= params_.max_point_range;
+      const Vec3d dir = R * (p.cast<double>() / range);
+      const double length = hit ? range : params_.max_point_range;
+      // Both ends of what the ray touches must be representable: the end point (a hit) and the end
+      // of the cleared segment.
+      const Vec3d end = (origin + dir * length) * inv_voxel_size_;
+      const Vec3d to = (origin + dir * std::min(length, params_.max_clearing_range)) * inv_voxel_size_;
+      if (!in_grid_extent(end) || !in_grid_extent(to)) {
+        ++st.dropped_out_of_extent;
+        continue;
+      }
+      ray.to = to;
+      ray.tile = tile_of(dir);
+      if (!hit) {
+        ++st.beyond_max_range;
+        continue;
+      }
+      const VoxelKey k = key_of_point<VoxelKey>(end, 1.0);
+      if (Block* b = find_block(block_of(k))) update(*b, k, params_.log_odds_hit, ctx);
+      else ctx.pending.push_back(k);
+    }
+  });
+  apply_pending(params_.log_odds_hit);
+
+  // Misses, in two passes. Casting only marks the voxels rays cross, one bit each, in a bitmap of
+  // the cube the clearing range reaches around the sensor: most of a scan's ~10^7 crossings are of
+  // voxels an earlier ray crossed already, and a bit test stays in cache where the cells (8 bytes,
+  // spread over blocks) do not. The update pass then visits every marked voxel once, in parallel
+  // over blocks, so no two threads touch the same voxel and the result is exactly the union of the
+  // rays whatever the threads. Rays are cast grouped by direction (cube-map tiles) so that
+  // neighbouring rays mark neighbouring words.
+  std::vector<uint32_t> start(kNoTile + 2, 0), order(rays.size());
+  for (const Ray& r : rays) ++start[r.tile + 1];
+  std::partial_sum(start.begin(), start.end(), start.begin());
+  {
+    std::vector<uint32_t> next(start.begin(), start.end() - 1);
+    for (uint32_t i = 0; i < rays.size(); ++i) order[next[rays[i].tile]++] = i;
+  }
+  // One 8^3 brick of bits (a cache line) per block of the window, same order: a ray crosses a
+  // brick in several steps, and the update pass finds each brick's block once. Allocated per scan
+  // (about 1.5 MB at the defaults): a buffer kept per thread could be reused by a scan of another
+  // map that this thread picks up while it waits inside ours. When the clearing range exceeds the
+  // window, rays update the cells directly instead.
+  const bool use_bitmap = window.side < 2 * kMaxWindowHalf + 1;
+  std::vector<uint64_t> bitmap(use_bitmap ? window.slots.size() * 8 : 0);
+  uint64_t* const words = bitmap.data();
+  const float miss = params_.log_odds_miss;
+  tbb::parallel_for(tbb::blocked_range<uint32_t>(0, kNoTile, 1), [&](const tbb::blocked_range<uint32_t>& tr) {
+    ScanContext& ctx = contexts.local();
+    // Copies: the compiler cannot keep values behind references in registers across the atomic
+    // writes below.
+    const int lx = window.lo.x() * kBlockSide, ly = window.lo.y() * kBlockSide, lz = window.lo.z() * kBlockSide;
+    const int side = window.side;
+    auto mark = [=](const VoxelKey& k) {
+      const int x = k.x() - lx, y = k.y() - ly, z = k.z() - lz;
+      const int brick = ((z >> kBlockBits) * side + (y >> kBlockBits)) * side + (x >> kBlockBits);
+      std::atomic_ref<uint64_t> w(words[brick * 8 + (z & 7)]);
+      const uint64_t m = uint64_t{1} << (((y & 7) << 3) | (x & 7));
+      if (!(w.load(std::memory_order_relaxed) & m)) w.fetch_or(m, std::memory_order_relaxed);
+    };
     BlockKey cached_key(std::numeric_limits<int>::min(), 0, 0);
     Block* block = nullptr;
-    bool stop = false;
-    auto visit = [&](const VoxelKey& key, float delta) {
-      if (stop) return;
-      const BlockKey bk = block_of(key);
-      if (!block || bk != cached_key) {
-        if (serial) {
-          block = &block_at(bk);
-        } else {
-          const auto it = blocks_.find(bk);
-          if (it == blocks_.end()) {
-            ctx.deferred.push_back(ray_index);
-            stop = true;
-            return;
-          }
-          block = it->second.get();
-        }
-        cached_key = bk;
-      }
-      const int i = index_in_block(key);
-      uint32_t& stamp = block->cells[i].stamp;
-      if (std::atomic_ref<uint32_t>(stamp).load(std::memory_order_relaxed) == scan) return;
-      if (std::atomic_ref<uint32_t>(stamp).exchange(scan, std::memory_order_relaxed) == scan) return;
-      update_voxel(*block, key, i, delta, ctx);
+    auto visit = [&](const VoxelKey& k) {
+      const BlockKey bk = block_of(k);
+      if (bk != cached_key) cached_key = bk, block = find_block(bk);
+      if (block) update(*block, k, miss, ctx);
+      else ctx.pending.push_back(k);
     };
-    if (hits) {
-      if (r.hit) visit(key_of(origin + r.dir * r.range), params_.log_odds_hit);
-      return;
+    for (uint32_t j = start[tr.begin()]; j != start[tr.end()]; ++j) {
+      const Ray& r = rays[order[j]];
+      if (use_bitmap) traverse_voxels(from, r.to, mark);
+      else traverse_voxels(from, r.to, visit);
     }
-    const double clear = std::min(r.range, params_.max_clearing_range);
-    if (clear > 0)
-      traverse_voxels(from, (origin + r.dir * clear) * inv_voxel_size_,
-                      [&](const VoxelKey& k) { visit(k, params_.log_odds_miss); });
-  };
-
-  // Creates the blocks a ray crosses: the same DDA at block resolution, an eighth of the steps.
-  auto create_blocks = [&](const Ray& r, bool hits) {
-    if (hits) {
-      block_at(block_of(key_of(origin + r.dir * r.range)));
-      return;
-    }
-    const double clear = std::min(r.range, params_.max_clearing_range);
-    const Vec3d to = (origin + r.dir * clear) * inv_voxel_size_ / kBlockSide;
-    traverse_voxels<BlockKey>(from / kBlockSide, to, [&](const BlockKey& bk) { block_at(bk); });
-    block_at(key_of_point<BlockKey>(to, 1.0));
-  };
-
-  // Hits first, all of them, so a voxel that is both an end point and on another ray counts as a
-  // hit (OctoMap's rule: the free set excludes the occupied set).
-  std::vector<uint32_t> todo(rays.size()), deferred;
-  for (const bool hits : {true, false}) {
-    todo.resize(rays.size());
-    std::iota(todo.begin(), todo.end(), 0u);
-    for (int round = 0; !todo.empty(); ++round) {
-      if (round == 2) {  // rounding at block corners can still miss a block: finish serially
-        ScanContext& ctx = contexts.local();
-        for (uint32_t i : todo) cast(rays[i], i, hits, ctx, true);
-        break;
+  });
+  if (use_bitmap)
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, window.slots.size(), 16), [&](const tbb::blocked_range<std::size_t>& br) {
+      ScanContext& ctx = contexts.local();
+      const auto side = static_cast<std::size_t>(window.side);
+      for (std::size_t brick = br.begin(); brick != br.end(); ++brick) {
+        uint64_t* w = words + brick * 8;
+        if (!(w[0] | w[1] | w[2] | w[3] | w[4] | w[5] | w[6] | w[7])) continue;
+        const BlockKey bk(window.lo.x() + static_cast<int>(brick % side),
+                          window.lo.y() + static_cast<int>(brick / side % side),
+                          window.lo.z() + static_cast<int>(brick / (side * side)));
+        Block* const block = window.slots[brick];
+        for (int z = 0; z < 8; ++z)
+          for (uint64_t bits = w[z]; bits; bits &= bits - 1) {
+            const int i = (z << 6) | __builtin_ctzll(bits);  // the voxel's index in its block
+            if (block) update(*block, voxel_of(bk, i), miss, ctx);
+            else ctx.pending.push_back(voxel_of(bk, i));
+          }
       }
-      tbb::parallel_for(tbb::blocked_range<std::size_t>(0, todo.size(), 512),
-                        [&](const tbb::blocked_range<std::size_t>& range) {
-                          ScanContext& ctx = contexts.local();
-                          for (std::size_t j = range.begin(); j != range.end(); ++j)
-                            cast(rays[todo[j]], todo[j], hits, ctx, false);
-                        });
-      deferred.clear();
-      for (ScanContext& ctx : contexts) {
-        deferred.insert(deferred.end(), ctx.deferred.begin(), ctx.deferred.end());
-        ctx.deferred.clear();
-      }
-      for (uint32_t i : deferred) create_blocks(rays[i], hits);
-      todo.swap(deferred);
-    }
-  }
+    });
+  apply_pending(miss);
+
   for (const ScanContext& ctx : contexts) {
     stats += ctx.stats;
     if (freed) freed->insert(freed->end(), ctx.freed.begin(), ctx.freed.end());
