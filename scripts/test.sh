@@ -6,7 +6,7 @@
 #   asan build     scripts/build_asan.sh: the test suite under ASan + UBSan (GCC, build-asan/)
 #   asan tests     scripts/test_asan.sh: that suite (any report fails the test)
 #   fuzz build     FUZZ=1 scripts/build_asan.sh: the libFuzzer harnesses (clang, build-fuzz/)
-#   fuzz runs      scripts/fuzz.sh: every harness for FUZZ_SECONDS (default 20) s
+#   fuzz runs      scripts/fuzz.sh: every harness for FUZZ_SECONDS (default 10) s
 # SLAMVDB_SANITIZERS=0 leaves out the last four (the quick local check). Each stage's wall time is
 # printed at the end, also when a stage fails (README, "Bad input, limits, sanitizers and fuzzing").
 set -euo pipefail
@@ -35,5 +35,5 @@ if [ "${SLAMVDB_SANITIZERS:-1}" = 1 ]; then
   stage "asan build" scripts/build_asan.sh
   stage "asan tests" scripts/test_asan.sh
   stage "fuzz build" env FUZZ=1 scripts/build_asan.sh
-  stage "fuzz runs" scripts/fuzz.sh "${FUZZ_SECONDS:-20}"
+  stage "fuzz runs" scripts/fuzz.sh "${FUZZ_SECONDS:-10}"
 fi

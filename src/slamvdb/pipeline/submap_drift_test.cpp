@@ -10,6 +10,7 @@
 #include "slamvdb/io/sequence_reader.hpp"
 #include "slamvdb/pipeline/mapping_pipeline.hpp"
 #include "slamvdb/synth/sequence_writer.hpp"
+#include "slamvdb/testing/test_scale.hpp"
 
 namespace slamvdb {
 namespace {
@@ -35,6 +36,7 @@ TEST(SubmapDrift, CorrectedAnchorsRestoreTheGroundTruthMap) {
   config.length_m = 60.0;
   config.image_width = 160;
   config.image_height = 100;
+  config.lidar.columns = testing::test_size(1024, 512);  // slamvdb/testing/test_scale.hpp
   synth::write_synthetic_sequence(config, dir, true);
   const Sequence truth = read_sequence(dir);
   Sequence drifting = truth;

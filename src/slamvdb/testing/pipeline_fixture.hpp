@@ -14,6 +14,7 @@
 #include "slamvdb/io/sequence_reader.hpp"
 #include "slamvdb/pipeline/mapping_pipeline.hpp"
 #include "slamvdb/synth/sequence_writer.hpp"
+#include "slamvdb/testing/test_scale.hpp"
 
 namespace slamvdb::testing {
 namespace fs = std::filesystem;
@@ -27,6 +28,7 @@ class MappingPipelineTest : public ::testing::Test {
     config.length_m = 30.0;
     config.image_width = 320;
     config.image_height = 200;
+    config.lidar.columns = test_size(1024, 256);  // testing/test_scale.hpp
     synth::write_synthetic_sequence(config, dir_, true);
   }
   static void TearDownTestSuite() { fs::remove_all(dir_); }
