@@ -39,6 +39,8 @@ struct Options {
   SimulatedEncoderConfig sim;
   bool realtime = false, resume = false, no_checkpoints = false;
   std::string poses, pose_format = "auto";
+  bool odometry = false;
+  TrackingOptions tracking;
   double queue_mb = 1024;
   std::string occlusion = "active";
   double max_image_pixels = static_cast<double>(kDefaultMaxImagePixels);
@@ -134,10 +136,24 @@ void run(Options opt, const std::string& config) {
   opt.pipeline.queue_bytes = static_cast<std::size_t>(opt.queue_mb * 1e6);
   const auto source = make_feature_source(opt, seq);
   std::unique_ptr<PoseSource> pose_source = std::make_unique<DatasetPoses>();
+  std::optional<ProgressBar> odometry_bar;
   if (!opt.poses.empty())
     pose_source = std::make_unique<PoseFile>(opt.poses, opt.pose_format == "auto" ? std::nullopt
                                                                                    : parse_pose_format(opt.pose_format));
+  OdometryPoses* own_poses = nullptr;
+  if (opt.odometry && opt.poses.empty()) {
+    auto odometry = std::make_unique<OdometryPoses>(
+        opt.tracking, [&](std::size_t done, std::size_t total, const TrackingResult& r) {
+          if (!odometry_bar) odometry_bar.emplace("odometry", total, "scans");
+          odometry_bar->update(done, fmt::format("{:.0f} m", r.distance));
+        });
+    own_poses = odometry.get();
+    pose_source = std::move(odometry);
+  }
   const Trajectory poses = pose_source->trajectory(seq);
+  if (odometry_bar) odometry_bar->finish();
+  if (own_poses)
+    for (const auto& line : own_poses->problems()) spdlog::warn("{}", escape_control(line));
   opt.pipeline.poses = &poses;
   fmt::print("poses: {} ({} poses)\n", pose_source->describe(), poses.size());
 
@@ -269,6 +285,12 @@ void add(CLI::App& root) {
                   "LiDAR poses in the world from a trajectory file instead of the sequence's ground truth: KITTI "
                   "(3x4 rows, row i = scan i) or TUM (stamp tx ty tz qx qy qz qw)")
       ->check(CLI::ExistingFile);
+  cmd->add_flag("--odometry", opt->odometry,
+                "Poses from the project's own LiDAR odometry and loop closure, computed over the scans before mapping "
+                "(placed at the first ground-truth pose when the sequence has one). `slamvdb slam` does both in one "
+                "pass instead");
+  cmd->add_flag("--no-loop-closure", [opt](std::int64_t) { opt->tracking.loop_closure = false; },
+                "With --odometry: odometry only");
   cmd->add_option("--pose-format", opt->pose_format, "Format of --poses: auto (from the first row), kitti or tum")
       ->capture_default_str()
       ->check(CLI::IsMember({"auto", "kitti", "tum"}));
@@ -290,6 +312,8 @@ void add(CLI::App& root) {
                                                         "cannot go with --no-checkpoints");
     if (opt->resume && !std::filesystem::is_regular_file(opt->output))
       usage_error(fmt::format("--resume: there is no map file {} to continue", opt->output));
+    if (opt->odometry && !opt->poses.empty()) usage_error("--odometry and --poses are two pose sources: give one");
+    if (!opt->tracking.loop_closure && !opt->odometry) usage_error("--no-loop-closure goes with --odometry");
     if (opt->pipeline.unload_radius > 0 && opt->no_checkpoints)
       usage_error("--unload-radius needs the map file written while mapping: it cannot go with --no-checkpoints");
   });

@@ -1,7 +1,7 @@
 // `slamvdb slam`: a semantic map without ground-truth poses. The project's LiDAR odometry and
-// loop-closing mapper track the scans; the map is built on the odometry poses, then every submap
-// is moved to the loop-corrected trajectory through the map's correction API (no sensor data is
-// fused again) and submaps that a loop shows to be the same place are merged.
+// loop-closing mapper give the streaming Mapper each scan's pose as it is registered; when a loop
+// is accepted the submaps are moved to the corrected trajectory while mapping goes on (no sensor
+// data is fused again) and submaps that a loop shows to be the same place are merged.
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
@@ -18,9 +18,7 @@
 #include "slamvdb/io/sequence_reader.hpp"
 #include "slamvdb/io/trajectory_io.hpp"
 #include "slamvdb/localization/trajectory_metrics.hpp"
-#include "slamvdb/pipeline/lidar_tracking.hpp"
-#include "slamvdb/pipeline/loop_corrections.hpp"
-#include "slamvdb/pipeline/mapping_pipeline.hpp"
+#include "slamvdb/pipeline/slam_mapping.hpp"
 #include "slamvdb/store/map_store.hpp"
 
 namespace slamvdb::cli::cmd_slam {
@@ -54,49 +52,23 @@ void run(Options opt, const std::string& config) {
   if (seq.scans.size() < 3) throw Error(fmt::format("{}: {} scans; slam needs at least 3", opt.dataset, seq.scans.size()));
   const auto source = make_feature_source(opt.features, seq);
 
-  // 1. Tracking: odometry + loop closure.
-  std::vector<ScanFile> scans;
-  for (const ScanRecord& s : seq.scans) scans.push_back({s.stamp, s.points});
-  std::optional<ProgressBar> track_bar;
-  const TrackingResult tracked = track_scans(scans, opt.tracking, [&](std::size_t done, std::size_t total,
-                                                                      const TrackingResult& r) {
-    if (!track_bar) track_bar.emplace("tracking", total, "scans");
-    track_bar->update(done, fmt::format("{:.0f} m{}", r.distance,
-                                        r.loop_closer ? fmt::format(", {} loops", r.loop_closer->loops().size()) : ""));
+  // Odometry, loop closure and mapping in one pass: each scan's pose goes to the mapper as soon as
+  // the scan is registered; accepted loops move (and merge) the submaps while mapping goes on.
+  SlamMappingOptions slam_options{opt.pipeline, opt.tracking, MergeOptions{opt.min_merge_overlap}};
+  std::optional<ProgressBar> bar;
+  SlamMappingResult run = map_with_own_poses(seq, source.get(), slam_options,
+                                             [&](std::size_t done, std::size_t total, const TrackingResult& r) {
+    if (!bar) bar.emplace("slam", total, "scans");
+    bar->update(done, fmt::format("{:.0f} m{}", r.distance,
+                                  r.loop_closer ? fmt::format(", {} loops", r.loop_closer->loops().size()) : ""));
   });
-  if (track_bar) track_bar->finish();
+  if (bar) bar->finish();
+  const TrackingResult& tracked = run.tracked;
   for (const auto& line : tracked.problems) spdlog::warn("{}", escape_control(line));
-
-  // The odometry frame is the first scan's sensor frame; with ground truth it is placed at the
-  // first ground-truth pose (the start is known, as on a robot), so the maps can be compared.
-  Pose T_world_odom = Pose::Identity();
-  if (const auto first = seq.poses.empty() ? std::nullopt : seq.poses.at(tracked.stamps.front())) T_world_odom = *first;
-  std::vector<Pose> odometry_poses, corrected_poses;
-  for (std::size_t i = 0; i < tracked.stamps.size(); ++i) {
-    odometry_poses.push_back(T_world_odom * tracked.T_odom_sensor[i]);
-    corrected_poses.push_back(T_world_odom * tracked.corrected(i));
-  }
-
-  // 2. The map on the odometry poses (what a robot has while it drives).
-  Sequence on_odometry = seq;
-  on_odometry.poses = Trajectory(tracked.stamps, odometry_poses);
-  std::optional<ProgressBar> map_bar;
-  PipelineReport report;
-  SemanticMap map = build_map(on_odometry, source.get(), opt.pipeline, report, [&](std::size_t done, std::size_t total) {
-    if (!map_bar) map_bar.emplace("map", total, "scans");
-    map_bar->update(done);
-  });
-  if (map_bar) map_bar->finish();
-  fmt::print("{}\n", escape_control_keep_lines(report.summary()));
-
-  // 3. Loop corrections move (and merge) the finished submaps.
-  std::vector<std::pair<double, double>> loops;
-  if (tracked.loop_closer)
-    for (const auto& l : tracked.loop_closer->loops()) loops.emplace_back(l.candidate_stamp, l.query_stamp);
-  const Pose T_odom_world = T_world_odom.inverse();
-  const LoopCorrectionReport corrections = apply_loop_corrections(
-      map, [&](double t) { return T_world_odom * tracked.correction_at(t) * T_odom_world; }, loops,
-      MergeOptions{opt.min_merge_overlap});
+  fmt::print("{}\n", escape_control_keep_lines(run.report.summary()));
+  SemanticMap& map = run.map;
+  const std::vector<Pose> odometry_poses = run.odometry_poses(), corrected_poses = run.corrected_poses();
+  const LoopCorrectionReport& corrections = run.corrections;
   MapInfo info = map.info();
   info.source = "slam (own odometry" + std::string(tracked.loop_closer ? " + loop closure" : "") + "): " +
                 seq.root.string();
@@ -114,8 +86,9 @@ void run(Options opt, const std::string& config) {
     fmt::print("  loops        {} accepted, {} rejected\n", tracked.loop_closer->loops().size(),
                tracked.loop_closer->rejected_total());
   }
-  fmt::print("  submaps      {} moved (largest shift {:.2f} m), {} merged, {} merges refused\n",
-             corrections.submaps_moved, corrections.max_shift, corrections.merges, corrections.merges_refused);
+  fmt::print("  submaps      {} moved by {} corrections while mapping (largest shift {:.2f} m), {} merged, {} merges "
+             "refused\n", corrections.submaps_moved, corrections.corrections, corrections.max_shift, corrections.merges,
+             corrections.merges_refused);
   for (const auto& note : corrections.notes) fmt::print("    {}\n", note);
   if (!seq.poses.empty()) {
     const auto before = ate_against(seq.poses, tracked.stamps, odometry_poses);
@@ -132,9 +105,9 @@ void add(CLI::App& root) {
   auto opt = std::make_shared<Options>();
   auto* cmd = root.add_subcommand(
       "slam",
-      "Map a dataset (RELLIS-3D or KITTI layout) without its poses: LiDAR odometry and loop closure track the scans, "
-      "the map is built on the odometry poses and its submaps are then moved to the loop-corrected trajectory (and "
-      "merged where a loop shows two are the same place).");
+      "Map a dataset (RELLIS-3D or KITTI layout) without its poses: LiDAR odometry gives the mapper each scan's pose "
+      "as it is registered; when loop closure accepts a loop, the submaps are moved to the corrected trajectory while "
+      "mapping goes on (and merged where a loop shows two are the same place).");
   cmd->add_option("dataset", opt->dataset, "Sequence directory")->required()->check(CLI::ExistingDirectory);
   cmd->add_option("-o,--output", opt->output, "Map file to write (.svdb)")->required();
   cmd->add_option("--poses-out", opt->poses_out, "Also write the corrected poses (T_world_lidar per scan)");

@@ -20,42 +20,53 @@ Pose TrackingResult::correction_at(double stamp) const {
 
 Pose TrackingResult::corrected(std::size_t i) const { return correction_at(stamps.at(i)) * T_odom_sensor.at(i); }
 
-TrackingResult track_scans(const std::vector<ScanFile>& scans, const TrackingOptions& options,
-                           const TrackingProgress& progress) {
+namespace {
+const TrackingOptions& validated(const TrackingOptions& options) {
   options.odometry.validate();
   if (options.loop_closure) options.loops.validate();
-  localization::LidarOdometry odometry(options.odometry);
-  TrackingResult result;
-  if (options.loop_closure) result.loop_closer = std::make_unique<localization::LoopClosingMapper>(options.loops);
-  int consecutive = 0;
-  for (std::size_t i = 0; i < scans.size(); ++i) {
-    const ScanFile& file = scans[i];
-    const ScanPoints scan = load_scan_points(file);
-    const auto start = std::chrono::steady_clock::now();
-    const localization::OdometryResult r =
-        odometry.register_scan(file.stamp, scan.points, scan.time.empty() ? nullptr : &scan.time);
-    if (result.loop_closer) result.loop_closer->add_scan(file.stamp, r.T_odom_sensor, scan.points, r.predicted_only);
-    result.busy_seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-    result.non_finite_points += r.non_finite_points;
-    result.out_of_range_points += r.out_of_range_points;
-    result.recovered += r.recovered && r.status == localization::ScanStatus::kOk;
-    if (r.status != localization::ScanStatus::kOk) {
-      ++result.failures[to_string(r.status)];
-      result.problems.push_back(fmt::format("scan {} ({}): {}: {}; constant-velocity prediction used", i,
-                                            file.path.string(), to_string(r.status), r.reason));
-      if (++consecutive > options.max_consecutive_failures)
-        throw Error(fmt::format("odometry lost: {} scans in a row could not be registered (last: {})", consecutive,
-                                file.path.string()));
-    } else {
-      consecutive = 0;
-    }
-    if (!result.T_odom_sensor.empty())
-      result.distance += (r.T_odom_sensor.translation() - result.T_odom_sensor.back().translation()).norm();
-    result.stamps.push_back(file.stamp);
-    result.T_odom_sensor.push_back(r.T_odom_sensor);
-    if (progress) progress(i + 1, scans.size(), result);
+  return options;
+}
+}  // namespace
+
+LidarTracker::LidarTracker(const TrackingOptions& options) : options_(validated(options)), odometry_(options.odometry) {
+  if (options.loop_closure) result_.loop_closer = std::make_unique<localization::LoopClosingMapper>(options.loops);
+}
+
+Pose LidarTracker::track(double stamp, const std::vector<Vec3f>& points, const std::vector<float>* point_times,
+                         const std::string& name) {
+  const auto start = std::chrono::steady_clock::now();
+  const localization::OdometryResult r = odometry_.register_scan(stamp, points, point_times);
+  if (result_.loop_closer) result_.loop_closer->add_scan(stamp, r.T_odom_sensor, points, r.predicted_only);
+  result_.busy_seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  result_.non_finite_points += r.non_finite_points;
+  result_.out_of_range_points += r.out_of_range_points;
+  result_.recovered += r.recovered && r.status == localization::ScanStatus::kOk;
+  if (r.status != localization::ScanStatus::kOk) {
+    ++result_.failures[to_string(r.status)];
+    result_.problems.push_back(fmt::format("scan {} ({}): {}: {}; constant-velocity prediction used",
+                                           result_.stamps.size(), name, to_string(r.status), r.reason));
+    if (++consecutive_failures_ > options_.max_consecutive_failures)
+      throw Error(fmt::format("odometry lost: {} scans in a row could not be registered (last: {})",
+                              consecutive_failures_, name));
+  } else {
+    consecutive_failures_ = 0;
   }
-  return result;
+  if (!result_.T_odom_sensor.empty())
+    result_.distance += (r.T_odom_sensor.translation() - result_.T_odom_sensor.back().translation()).norm();
+  result_.stamps.push_back(stamp);
+  result_.T_odom_sensor.push_back(r.T_odom_sensor);
+  return r.T_odom_sensor;
+}
+
+TrackingResult track_scans(const std::vector<ScanFile>& scans, const TrackingOptions& options,
+                           const TrackingProgress& progress) {
+  LidarTracker tracker(options);
+  for (std::size_t i = 0; i < scans.size(); ++i) {
+    const ScanPoints scan = load_scan_points(scans[i]);
+    tracker.track(scans[i].stamp, scan.points, scan.time.empty() ? nullptr : &scan.time, scans[i].path.string());
+    if (progress) progress(i + 1, scans.size(), tracker.result());
+  }
+  return tracker.take_result();
 }
 
 }  // namespace slamvdb

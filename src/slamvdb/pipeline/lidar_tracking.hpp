@@ -41,6 +41,25 @@ struct TrackingResult {
   Pose correction_at(double stamp) const;
 };
 
+// Tracks scans one at a time as they arrive (what `track_scans` and the streaming `slam` run on).
+class LidarTracker {
+ public:
+  explicit LidarTracker(const TrackingOptions& options);  // throws Error for invalid options
+  // Registers the next scan (stamps increasing) and returns its odometry pose T_odom_sensor; a
+  // scan that cannot be registered gets the constant-velocity prediction and is counted. Throws
+  // Error when more than max_consecutive_failures scans in a row fail.
+  Pose track(double stamp, const std::vector<Vec3f>& points, const std::vector<float>* point_times,
+             const std::string& name);
+  const TrackingResult& result() const { return result_; }
+  TrackingResult take_result() { return std::move(result_); }
+
+ private:
+  TrackingOptions options_;
+  localization::LidarOdometry odometry_;
+  TrackingResult result_;
+  int consecutive_failures_ = 0;
+};
+
 // progress(done, total, result so far) after every scan.
 using TrackingProgress = std::function<void(std::size_t, std::size_t, const TrackingResult&)>;
 TrackingResult track_scans(const std::vector<ScanFile>& scans, const TrackingOptions& options,

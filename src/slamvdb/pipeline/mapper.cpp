@@ -91,6 +91,7 @@ bool Mapper::admit(std::unique_lock<std::mutex>& lock, std::unique_ptr<Item> ite
     return false;
   }
   queued_bytes_ += item->bytes;
+  idle_ = false;
   (scan ? scans_ : images_).push_back(std::move(item));
   report_.peak_queued_items = std::max(report_.peak_queued_items, scans_.size() + images_.size());
   report_.peak_queued_bytes = std::max(report_.peak_queued_bytes, queued_bytes_);
@@ -188,13 +189,20 @@ bool Mapper::add_pose(double stamp, const Pose& T_world_sensor) {
     return false;
   }
   trajectory_.append(stamp, T_world_sensor);
+  idle_ = false;
   work_cv_.notify_all();
   return true;
+}
+
+void Mapper::wait_until_idle() {
+  std::unique_lock lock(mutex_);
+  idle_cv_.wait(lock, [&] { return idle_ || stopping_ || error_ != nullptr; });
 }
 
 void Mapper::end_poses() {
   std::lock_guard lock(mutex_);
   poses_ended_ = true;
+  idle_ = false;
   work_cv_.notify_all();
 }
 
@@ -273,8 +281,14 @@ void Mapper::mapping_loop() {
   while (!stopping_) {
     Item* next = next_item();
     if (!next) {
-      if (closing_) return;
+      if (closing_) {
+        idle_ = true;
+        idle_cv_.notify_all();
+        return;
+      }
       waiting_for_pose_ = false;
+      idle_ = true;
+      idle_cv_.notify_all();
       work_cv_.wait(lock);
       continue;
     }
@@ -285,6 +299,8 @@ void Mapper::mapping_loop() {
     const std::optional<Pose> pose = trajectory_.at(next->stamp);
     if (!pose && !closing_ && !poses_ended_ && (trajectory_.empty() || next->stamp > trajectory_.back_stamp())) {
       waiting_for_pose_ = true;  // a later pose will cover it
+      idle_ = true;
+      idle_cv_.notify_all();
       room_cv_.notify_all();
       work_cv_.wait(lock);
       continue;
@@ -309,6 +325,7 @@ void Mapper::mapping_loop() {
       stopping_ = true;
       work_cv_.notify_all();
       room_cv_.notify_all();
+      idle_cv_.notify_all();
       return;
     }
     lock.lock();

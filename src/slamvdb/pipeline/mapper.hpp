@@ -74,6 +74,11 @@ class Mapper {
   void add_unreadable_scan(const std::string& problem);
   void add_unreadable_image(const std::string& problem);
 
+  // Blocks until the mapper has processed everything it was given that the poses so far cover
+  // (what waits for a later pose stays queued), or it failed or finished. A loop closer calls it
+  // before reading the submaps to correct, so that every scan it has given is in one of them.
+  void wait_until_idle();
+
   // ---- loop closure (any thread) ----
   void correct_submaps(const std::map<int, Pose>& T_world_submap);  // throws Error like SemanticMap
   MergeReport merge_submaps(int target, int source, const MergeOptions& options = {});
@@ -109,12 +114,14 @@ class Mapper {
   double resume_after_ = -std::numeric_limits<double>::infinity();
 
   mutable std::mutex mutex_;  // everything below up to store_mutex_
-  std::condition_variable work_cv_, room_cv_;
+  std::condition_variable work_cv_, room_cv_, idle_cv_;
   std::deque<std::unique_ptr<Item>> scans_, images_;
   std::size_t queued_bytes_ = 0;
   Trajectory trajectory_;
   double last_scan_stamp_, last_image_stamp_;
   bool closing_ = false, stopping_ = false, waiting_for_pose_ = false, poses_ended_ = false;
+  // The mapping thread waits with nothing it can process; any new input clears it.
+  bool idle_ = false;
   PipelineReport report_;
   std::exception_ptr error_;
   // Feature maps already fused, whose buffers the inference thread fills again (at most

@@ -240,5 +240,29 @@ TEST(Mapper, StreamsFromSeveralThreadsWhileSubmapsAreMovedMergedAndRead) {
   EXPECT_GT(map.num_semantic_voxels(), 0u);
 }
 
+// wait_until_idle returns once everything the poses cover is in the map, and does not wait for
+// what only a later pose can cover (a loop closer calls it between two scans).
+TEST(Mapper, WaitUntilIdleHoldsEveryCoveredItemAndLeavesTheRestQueued) {
+  MapperOptions m;
+  m.map.semantic.dim = 8;
+  m.camera = small_camera();
+  Mapper mapper(m, SemanticMap(m.map));
+  mapper.wait_until_idle();  // nothing given yet
+  for (int i = 0; i < 5; ++i) {
+    ASSERT_TRUE(mapper.add_pose(i, at_x(0.1 * i)));
+    ASSERT_TRUE(mapper.add_scan(i, wall_ahead()));
+  }
+  ASSERT_TRUE(mapper.add_features(4.5, unit_features(8)));  // waits for a pose after 4.5 s
+  mapper.wait_until_idle();
+  PipelineReport r = mapper.report();
+  EXPECT_EQ(r.scans_integrated, 5u);
+  EXPECT_EQ(r.images_fused, 0u);
+  EXPECT_GT(mapper.map().num_occupied_voxels(), 0u);
+  ASSERT_TRUE(mapper.add_pose(5, at_x(0.5)));
+  mapper.wait_until_idle();
+  EXPECT_EQ(mapper.report().images_fused, 1u);
+  mapper.finish();
+}
+
 }  // namespace
 }  // namespace slamvdb

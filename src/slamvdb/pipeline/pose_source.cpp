@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 
 #include "slamvdb/core/error.hpp"
+#include "slamvdb/io/scan_source.hpp"
 
 namespace slamvdb {
 
@@ -31,6 +32,40 @@ Trajectory PoseFile::trajectory(const Sequence& sequence) const {
   } catch (const Error& e) {
     throw Error(fmt::format("{}: {}", file_.string(), e.what()));
   }
+}
+
+std::string OdometryPoses::describe() const {
+  return fmt::format("the project's LiDAR odometry{}{}", options_.loop_closure ? " with loop closure" : "",
+                     summary_.empty() ? "" : " (" + summary_ + ")");
+}
+
+Trajectory OdometryPoses::trajectory(const Sequence& sequence) const {
+  LidarTracker tracker(options_);
+  std::size_t unreadable = 0;
+  for (std::size_t i = 0; i < sequence.scans.size(); ++i) {
+    const ScanRecord& rec = sequence.scans[i];
+    std::optional<ScanPoints> scan;
+    try {
+      scan = load_scan_points({rec.stamp, rec.points});
+    } catch (const Error&) {
+      ++unreadable;  // no pose for it; the mapper reports the file when it reads it
+    }
+    if (scan) tracker.track(rec.stamp, scan->points, scan->time.empty() ? nullptr : &scan->time, rec.points.string());
+    if (progress_) progress_(i + 1, sequence.scans.size(), tracker.result());
+  }
+  const TrackingResult& r = tracker.result();
+  if (r.stamps.empty()) throw Error(fmt::format("{}: no scan could be read for odometry", sequence.root.string()));
+  Pose T_world_odom = Pose::Identity();
+  if (const auto first = sequence.poses.empty() ? std::nullopt : sequence.poses.at(r.stamps.front())) T_world_odom = *first;
+  std::vector<Pose> poses;
+  for (std::size_t i = 0; i < r.stamps.size(); ++i) poses.push_back(T_world_odom * r.corrected(i));
+  std::size_t failed = 0;
+  for (const auto& [reason, n] : r.failures) failed += n;
+  summary_ = fmt::format("{} scans registered, {} predicted only, {} unreadable, {:.1f} m{}", r.registered(), failed,
+                         unreadable, r.distance,
+                         r.loop_closer ? fmt::format(", {} loops", r.loop_closer->loops().size()) : "");
+  problems_ = r.problems;
+  return Trajectory(r.stamps, std::move(poses));
 }
 
 }  // namespace slamvdb

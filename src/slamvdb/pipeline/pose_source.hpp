@@ -1,7 +1,8 @@
 #pragma once
 // Where the mapper's poses (T_world_lidar, stamped) come from, behind one interface: the
-// sequence's ground truth, or an external trajectory file (KITTI 3x4 rows paired with the scans in
-// order, or TUM "stamp tx ty tz qx qy qz qw") such as `slamvdb odometry` writes.
+// sequence's ground truth, an external trajectory file (KITTI 3x4 rows paired with the scans in
+// order, or TUM "stamp tx ty tz qx qy qz qw") such as `slamvdb odometry` writes, or the project's
+// own LiDAR odometry and loop closure run over the sequence's scans.
 #include <filesystem>
 #include <memory>
 #include <optional>
@@ -9,6 +10,7 @@
 
 #include "slamvdb/io/dataset.hpp"
 #include "slamvdb/io/trajectory_io.hpp"
+#include "slamvdb/pipeline/lidar_tracking.hpp"
 
 namespace slamvdb {
 
@@ -39,6 +41,27 @@ class PoseFile final : public PoseSource {
  private:
   std::filesystem::path file_;
   std::optional<PoseFormat> format_;
+};
+
+// The project's own poses in a first pass over the scans (odometry, then loop-corrected when loop
+// closure is on); `slamvdb slam` instead maps in the same pass and moves submaps as loops close.
+// The odometry frame (the first scan's sensor frame) is placed at the first scan's ground-truth
+// pose when the sequence has one (the start is known, as on a robot: maps then compare), else
+// at the world origin. An unreadable scan gets no pose (the mapper counts it when it reads it).
+class OdometryPoses final : public PoseSource {
+ public:
+  explicit OdometryPoses(TrackingOptions options, TrackingProgress progress = {})
+      : options_(std::move(options)), progress_(std::move(progress)) {}
+  // After trajectory(): also how the tracking went.
+  std::string describe() const override;
+  Trajectory trajectory(const Sequence& sequence) const override;
+  const std::vector<std::string>& problems() const { return problems_; }  // one line per scan not registered
+
+ private:
+  TrackingOptions options_;
+  TrackingProgress progress_;
+  mutable std::string summary_;
+  mutable std::vector<std::string> problems_;
 };
 
 }  // namespace slamvdb

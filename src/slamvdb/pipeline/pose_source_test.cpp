@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <fstream>
+#include <iostream>
 
 #include "slamvdb/core/error.hpp"
 #include "slamvdb/io/sequence_reader.hpp"
@@ -98,6 +99,38 @@ TEST_F(MappingPipelineTest, MapCommandTakesATumPoseFile) {
   ASSERT_EQ(r.exit_code, 0) << r.output;
   EXPECT_NE(r.output.find("TUM pose file"), std::string::npos) << r.output;
   EXPECT_NE(r.output.find("20 integrated of 20"), std::string::npos) << r.output;
+}
+
+// The project's own odometry behind the same interface: one pose per scan, placed at the first
+// ground-truth pose and close to the rest of them (the simulated drive is 30 m).
+TEST_F(MappingPipelineTest, OwnOdometryIsAPoseSourceCloseToTheGroundTruth) {
+  const Sequence seq = read_sequence(dir_);
+  std::size_t progress_calls = 0;
+  OdometryPoses source(TrackingOptions{}, [&](std::size_t, std::size_t, const TrackingResult&) { ++progress_calls; });
+  const Trajectory own = source.trajectory(seq);
+  ASSERT_EQ(own.size(), seq.scans.size());
+  EXPECT_EQ(progress_calls, seq.scans.size());
+  EXPECT_TRUE(own.poses().front().isApprox(*seq.poses.at(seq.scans.front().stamp), 1e-9));
+  double worst = 0;
+  for (std::size_t i = 0; i < own.size(); ++i)
+    worst = std::max(worst, (own.poses()[i].translation() - seq.poses.at(own.stamps()[i])->translation()).norm());
+  std::cout << "own odometry on the SIMULATED 30 m drive: worst position error " << worst << " m\n";
+  EXPECT_LT(worst, 0.3);
+  EXPECT_NE(source.describe().find(fmt::format("{} scans registered", seq.scans.size())), std::string::npos)
+      << source.describe();
+}
+
+TEST_F(MappingPipelineTest, MapCommandMapsOnItsOwnOdometry) {
+  const fs::path out = dir_ / "cli_odometry.svdb";
+  const std::string common = fmt::format("map {} -o {} --max-scans 20 --dim 16 --feature-size 64x40",
+                                         testing::shell_quote(dir_.string()), testing::shell_quote(out.string()));
+  const auto r = testing::run_cli(common + " --odometry --no-loop-closure");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("poses: the project's LiDAR odometry ("), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("20 integrated of 20"), std::string::npos) << r.output;
+  const auto both = testing::run_cli(common + " --odometry --poses " + testing::shell_quote((dir_ / "poses.txt").string()));
+  EXPECT_EQ(both.exit_code, 2) << both.output;
+  EXPECT_EQ(testing::run_cli(common + " --no-loop-closure").exit_code, 2);
 }
 
 }  // namespace

@@ -46,6 +46,8 @@ TEST(SlamCommand, MapOnOwnPosesAgreesWithTheGroundTruthMap) {
 
   EXPECT_EQ(slam.output.find("0 accepted"), std::string::npos) << slam.output;  // a loop was closed
   EXPECT_NE(slam.output.find("merged into"), std::string::npos) << slam.output;  // and submaps merged
+  EXPECT_NE(slam.output.find("corrections while mapping"), std::string::npos) << slam.output;
+  EXPECT_EQ(slam.output.find("moved by 0 corrections"), std::string::npos) << slam.output;  // moved as loops closed
   std::ifstream in(poses);
   std::size_t lines = 0;
   for (std::string line; std::getline(in, line);) lines += !line.empty();

@@ -1,0 +1,116 @@
+#include "slamvdb/pipeline/slam_mapping.hpp"
+
+#include <fmt/format.h>
+
+#include <chrono>
+#include <cmath>
+#include <limits>
+
+#include "slamvdb/core/error.hpp"
+#include "slamvdb/io/scan_source.hpp"
+
+namespace slamvdb {
+
+std::vector<Pose> SlamMappingResult::odometry_poses() const {
+  std::vector<Pose> poses;
+  for (const Pose& T : tracked.T_odom_sensor) poses.push_back(T_world_odom * T);
+  return poses;
+}
+
+std::vector<Pose> SlamMappingResult::corrected_poses() const {
+  std::vector<Pose> poses;
+  for (std::size_t i = 0; i < tracked.stamps.size(); ++i) poses.push_back(T_world_odom * tracked.corrected(i));
+  return poses;
+}
+
+SlamMappingResult map_with_own_poses(const Sequence& seq, FeatureSource* features, const SlamMappingOptions& options,
+                                     const SlamProgress& progress) {
+  const auto t_start = std::chrono::steady_clock::now();
+  LidarTracker tracker(options.tracking);
+  const std::size_t num_scans = options.pipeline.max_scans ? std::min(options.pipeline.max_scans, seq.scans.size())
+                                                           : seq.scans.size();
+  const double last_scan_stamp = num_scans ? seq.scans[num_scans - 1].stamp : -1e300;
+  std::size_t num_images = 0;
+  while (features && num_images < seq.images.size() && seq.images[num_images].stamp <= last_scan_stamp) ++num_images;
+
+  Pose G = Pose::Identity();  // T_world_odom
+  if (num_scans)
+    if (const auto first = seq.poses.empty() ? std::nullopt : seq.poses.at(seq.scans[0].stamp)) G = *first;
+  const Pose G_inv = G.inverse();
+  // The loop closer's correction C (odometry frame) as the map's world sees it: G C G^-1.
+  const auto world_correction = [&](double stamp) {
+    return G * tracker.result().loop_closer->correction_at(stamp) * G_inv;
+  };
+
+  MapInfo info;
+  info.model_id = features ? features->model_id() : "";
+  info.source = seq.root.string();
+  PipelineOptions pipeline = options.pipeline;
+  pipeline.realtime = false, pipeline.unload_radius = 0, pipeline.store = nullptr;
+  Mapper mapper(mapper_options(seq, pipeline), SemanticMap(options.pipeline.map, info), features);
+  SubmapCorrections corrections;
+  Pose K_given = Pose::Identity();  // the correction in the poses given to the mapper
+  std::size_t loops_seen = 0, optimizations_seen = 0;
+  double last_pose_stamp = -std::numeric_limits<double>::infinity();
+  std::optional<Pose> last_odometry;  // G T_odom_sensor of the last pose given
+
+  std::size_t si = 0, ii = 0;
+  while (si < num_scans || ii < num_images) {
+    // In time order; a scan before an image of the same stamp.
+    if (ii < num_images && (si == num_scans || seq.images[ii].stamp < seq.scans[si].stamp)) {
+      mapper.add_image(seq.images[ii++]);
+      continue;
+    }
+    const ScanRecord& rec = seq.scans[si++];
+    ScanPoints scan;
+    try {
+      scan = load_scan_points({rec.stamp, rec.points});
+    } catch (const Error& e) {
+      mapper.add_unreadable_scan(fmt::format("scan {}: {}", rec.points.filename().string(), e.what()));
+      continue;
+    }
+    const Pose T_odom_sensor =
+        tracker.track(rec.stamp, scan.points, scan.time.empty() ? nullptr : &scan.time, rec.points.string());
+    const auto* closer = tracker.result().loop_closer.get();
+    if (closer && (closer->optimizations() != optimizations_seen || closer->loops().size() != loops_seen)) {
+      // The pose graph changed: move every submap to the new correction once the mapper holds
+      // every scan given so far, and give later poses with it. The last pose is given again just
+      // after its stamp, corrected, so that images between it and this scan are placed in the
+      // corrected world too.
+      mapper.wait_until_idle();
+      mapper.correct_submaps(corrections.move(mapper.map().submaps(), world_correction));
+      for (std::size_t l = loops_seen; l < closer->loops().size(); ++l)
+        corrections.add_loop(closer->loops()[l].candidate_stamp, closer->loops()[l].query_stamp);
+      loops_seen = closer->loops().size(), optimizations_seen = closer->optimizations();
+      K_given = world_correction(rec.stamp);
+      if (last_odometry) {
+        const double just_after = std::nextafter(last_pose_stamp, std::numeric_limits<double>::infinity());
+        if (just_after < rec.stamp) {
+          mapper.add_pose(just_after, K_given * *last_odometry);
+          corrections.poses_given_with(just_after, K_given);
+        }
+      } else {
+        corrections.poses_given_with(rec.stamp, K_given);
+      }
+    }
+    last_odometry = G * T_odom_sensor;
+    last_pose_stamp = rec.stamp;
+    mapper.add_pose(rec.stamp, K_given * *last_odometry);
+    mapper.add_scan(rec.stamp, std::move(scan.points));
+    if (corrections.pending_loops())
+      corrections.merge_ready(mapper.map().submaps(), mapper.map().active_submap_id(),
+                              [&](int target, int source) { return mapper.merge_submaps(target, source, options.merge); });
+    if (progress) progress(si, num_scans, tracker.result());
+    if (mapper.failed()) break;  // finish() names the error
+  }
+  mapper.end_poses();
+  SemanticMap map = mapper.finish();
+  // Loops whose newest submap was still being written: it is finished now.
+  corrections.merge_ready(map.submaps(), std::nullopt,
+                          [&](int target, int source) { return map.merge_submaps(target, source, options.merge); });
+  PipelineReport report = mapper.report();
+  report.seconds_total = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
+  return SlamMappingResult{std::move(map), std::move(report), tracker.take_result(), corrections.report(), G};
+}
+
+}  // namespace slamvdb

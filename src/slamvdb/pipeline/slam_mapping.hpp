@@ -1,0 +1,41 @@
+#pragma once
+// Mapping on the project's own poses, streamed (paper Figure 6.1): each scan is registered by the
+// LiDAR odometry and its pose given to the Mapper at once, with the scan and the images around
+// it; when the loop-closing mapper accepts a loop, the Mapper's submaps are moved to the corrected
+// trajectory (Mapper::correct_submaps) while mapping goes on, later poses are given corrected, and
+// submaps the loop shows to be the same place are merged once both are finished.
+#include <functional>
+
+#include "slamvdb/io/dataset.hpp"
+#include "slamvdb/pipeline/lidar_tracking.hpp"
+#include "slamvdb/pipeline/loop_corrections.hpp"
+#include "slamvdb/pipeline/mapping_pipeline.hpp"
+
+namespace slamvdb {
+
+struct SlamMappingOptions {
+  PipelineOptions pipeline;  // poses, store, realtime and unload_radius are not used
+  TrackingOptions tracking;
+  MergeOptions merge;
+};
+
+struct SlamMappingResult {
+  SemanticMap map;
+  PipelineReport report;
+  TrackingResult tracked;
+  LoopCorrectionReport corrections;
+  // Where the odometry frame (the first scan's sensor frame) sits in the map's world: the
+  // sequence's ground-truth pose of the first scan when it has one (the start is known, as on a
+  // robot, so maps can be compared), else the identity.
+  Pose T_world_odom = Pose::Identity();
+  std::vector<Pose> odometry_poses() const;  // T_world_sensor per tracked scan, odometry only
+  std::vector<Pose> corrected_poses() const;  // the same after the final loop corrections
+};
+
+// progress(done, total, tracking so far) after every scan. Throws Error when the odometry is lost
+// or the mapper fails; unreadable scans are skipped and counted.
+using SlamProgress = std::function<void(std::size_t, std::size_t, const TrackingResult&)>;
+SlamMappingResult map_with_own_poses(const Sequence& sequence, FeatureSource* features,
+                                     const SlamMappingOptions& options, const SlamProgress& progress = {});
+
+}  // namespace slamvdb
