@@ -34,6 +34,11 @@ Trajectory PoseFile::trajectory(const Sequence& sequence) const {
   }
 }
 
+Pose odometry_start_pose(const Sequence& sequence, double first_scan_stamp) {
+  if (sequence.poses.empty()) return Pose::Identity();
+  return sequence.poses.at(first_scan_stamp).value_or(Pose::Identity());
+}
+
 std::string OdometryPoses::describe() const {
   return fmt::format("the project's LiDAR odometry{}{}", options_.loop_closure ? " with loop closure" : "",
                      summary_.empty() ? "" : " (" + summary_ + ")");
@@ -55,8 +60,7 @@ Trajectory OdometryPoses::trajectory(const Sequence& sequence) const {
   }
   const TrackingResult& r = tracker.result();
   if (r.stamps.empty()) throw Error(fmt::format("{}: no scan could be read for odometry", sequence.root.string()));
-  Pose T_world_odom = Pose::Identity();
-  if (const auto first = sequence.poses.empty() ? std::nullopt : sequence.poses.at(r.stamps.front())) T_world_odom = *first;
+  const Pose T_world_odom = odometry_start_pose(sequence, r.stamps.front());
   std::vector<Pose> poses;
   for (std::size_t i = 0; i < r.stamps.size(); ++i) poses.push_back(T_world_odom * r.corrected(i));
   std::size_t failed = 0;

@@ -43,11 +43,14 @@ class PoseFile final : public PoseSource {
   std::optional<PoseFormat> format_;
 };
 
+// Where the project's odometry frame (the first scan's sensor frame) sits in the world: the
+// sequence's ground-truth pose at that scan when it has one (the start is known, as on a robot,
+// so maps compare with ground-truth ones), else the identity.
+Pose odometry_start_pose(const Sequence& sequence, double first_scan_stamp);
+
 // The project's own poses in a first pass over the scans (odometry, then loop-corrected when loop
 // closure is on); `slamvdb slam` instead maps in the same pass and moves submaps as loops close.
-// The odometry frame (the first scan's sensor frame) is placed at the first scan's ground-truth
-// pose when the sequence has one (the start is known, as on a robot: maps then compare), else
-// at the world origin. An unreadable scan gets no pose (the mapper counts it when it reads it).
+// The odometry frame is placed by odometry_start_pose. An unreadable scan gets no pose (the mapper counts it when it reads it).
 class OdometryPoses final : public PoseSource {
  public:
   explicit OdometryPoses(TrackingOptions options, TrackingProgress progress = {})

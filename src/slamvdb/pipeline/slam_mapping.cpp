@@ -8,6 +8,7 @@
 
 #include "slamvdb/core/error.hpp"
 #include "slamvdb/io/scan_source.hpp"
+#include "slamvdb/pipeline/pose_source.hpp"
 
 namespace slamvdb {
 
@@ -33,9 +34,7 @@ SlamMappingResult map_with_own_poses(const Sequence& seq, FeatureSource* feature
   std::size_t num_images = 0;
   while (features && num_images < seq.images.size() && seq.images[num_images].stamp <= last_scan_stamp) ++num_images;
 
-  Pose G = Pose::Identity();  // T_world_odom
-  if (num_scans)
-    if (const auto first = seq.poses.empty() ? std::nullopt : seq.poses.at(seq.scans[0].stamp)) G = *first;
+  const Pose G = num_scans ? odometry_start_pose(seq, seq.scans[0].stamp) : Pose::Identity();  // T_world_odom
   const Pose G_inv = G.inverse();
   // The loop closer's correction C (odometry frame) as the map's world sees it: G C G^-1.
   const auto world_correction = [&](double stamp) {

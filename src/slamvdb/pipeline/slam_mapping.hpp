@@ -24,10 +24,7 @@ struct SlamMappingResult {
   PipelineReport report;
   TrackingResult tracked;
   LoopCorrectionReport corrections;
-  // Where the odometry frame (the first scan's sensor frame) sits in the map's world: the
-  // sequence's ground-truth pose of the first scan when it has one (the start is known, as on a
-  // robot, so maps can be compared), else the identity.
-  Pose T_world_odom = Pose::Identity();
+  Pose T_world_odom = Pose::Identity();  // odometry_start_pose (pose_source.hpp)
   std::vector<Pose> odometry_poses() const;  // T_world_sensor per tracked scan, odometry only
   std::vector<Pose> corrected_poses() const;  // the same after the final loop corrections
 };
