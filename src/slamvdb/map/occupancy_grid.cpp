@@ -7,7 +7,9 @@
 
 #include <atomic>
 #include <limits>
+#include <mutex>
 #include <numeric>
+#include <utility>
 
 #include "slamvdb/core/error.hpp"
 #include "slamvdb/map/occupancy_raycast.hpp"
@@ -85,6 +87,48 @@ void OccupancyGrid::set_occupied_bit(Block& b, int i, bool occupied) {
 }
 
 namespace {
+// Bitmaps for integrate_scan, handed back clear: allocating and zeroing 4 MB per thread per scan
+// cost more than the update pass, which clears what it reads. Shared by every grid (a pool per grid
+// would multiply with the submaps); a scan takes one per thread that joins it. A scan that throws
+// drops its bitmaps instead of handing them back.
+class PooledBitmap {
+ public:
+  explicit PooledBitmap(std::size_t words) {
+    {
+      std::lock_guard lock(mutex());
+      auto& spare = free_list();
+      for (auto it = spare.begin(); it != spare.end(); ++it)
+        if (it->size() == words) {
+          words_ = std::move(*it);
+          spare.erase(it);
+          return;
+        }
+    }
+    words_.assign(words, 0);
+  }
+  PooledBitmap(PooledBitmap&&) = default;
+  PooledBitmap& operator=(PooledBitmap&&) = delete;
+  ~PooledBitmap() {
+    if (!clear_ || words_.empty()) return;
+    std::lock_guard lock(mutex());
+    if (free_list().size() < 16) free_list().push_back(std::move(words_));
+  }
+  uint64_t* data() { return words_.data(); }
+  void set_clear() { clear_ = true; }  // every bit is 0 again
+
+ private:
+  static std::mutex& mutex() {
+    static std::mutex m;
+    return m;
+  }
+  static std::vector<std::vector<uint64_t>>& free_list() {
+    static std::vector<std::vector<uint64_t>> spare;
+    return spare;
+  }
+  std::vector<uint64_t> words_;
+  bool clear_ = false;
+};
+
 // Population count without the POPCNT instruction (not in baseline x86-64; the compiler's builtin
 // then calls a slow library routine).
 inline int popcount64(uint64_t x) {
@@ -124,11 +168,6 @@ ScanIntegrationStats OccupancyGrid::integrate_scan(const std::vector<Vec3f>& poi
                             params_.voxel_size));
   const uint32_t scan = ++scan_counter_;
 
-  struct Ray {
-    Vec3d to;        // end of the cleared segment, cell units
-    uint32_t tile;   // direction cell (see below)
-    uint32_t steps;  // voxels it crosses
-  };
   // Rays are grouped by direction: the cells of a cube map around the sensor, kTiles x kTiles per
   // face (about 5.6 degrees at 16).
   constexpr int kTiles = 16;
@@ -209,26 +248,26 @@ ScanIntegrationStats OccupancyGrid::integrate_scan(const std::vector<Vec3f>& poi
   const RayCube cube = RayCube::around(from_key, reach);
   const bool use_bitmap = cube.side_bits != 0;
   struct Marks {
-    std::vector<uint64_t> words;  // misses, then hits (cube.num_words() each)
-    Eigen::Vector3i lo, hi;       // bounding box of what was marked
+    PooledBitmap words;      // misses, then hits (cube.num_words() each)
+    Eigen::Vector3i lo, hi;  // bounding box of what was marked
   };
-  // Allocated per scan: a buffer kept per thread could be reused by a scan of another map that
-  // this thread picks up while it waits inside ours.
+  // Per scan, not per thread: a thread's bitmap could be reused by a scan of another map that this
+  // thread picks up while it waits inside ours.
   tbb::enumerable_thread_specific<Marks> marks(
-      [&] { return Marks{std::vector<uint64_t>(use_bitmap ? 2 * cube.num_words() : 0), from_key, from_key}; });
+      [&] { return Marks{PooledBitmap(use_bitmap ? 2 * cube.num_words() : 0), from_key, from_key}; });
 
-  // Rays are prepared and the hits outside the cube applied in parallel. A dropped ray gets the
-  // tile kNoTile.
-  constexpr uint32_t kNoTile = 6 * kTiles * kTiles;
-  std::vector<Ray> rays(points_sensor.size());
+  // Rays are prepared and the hits outside the cube applied in parallel. A cast ray's sort key is
+  // its tile, then its length in voxels (10 bits, saturated); dropped rays get kNoKey.
+  constexpr uint32_t kNoTile = 6 * kTiles * kTiles, kNoKey = ~0u;
+  std::vector<Vec3d> rays(points_sensor.size());  // end of the cleared segment, cell units
+  std::vector<uint32_t> sort_keys(points_sensor.size());
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, rays.size(), 2048), [&](const tbb::blocked_range<std::size_t>& rr) {
     ScanContext& ctx = contexts.local();
     ScanIntegrationStats& st = ctx.stats;
     Marks& m = marks.local();
     uint64_t* const hit_words = m.words.data() + (use_bitmap ? cube.num_words() : 0);
     for (std::size_t j = rr.begin(); j != rr.end(); ++j) {
-      Ray& ray = rays[j];
-      ray.tile = kNoTile;
+      sort_keys[j] = kNoKey;
       const Vec3f& p = points_sensor[j];
       if (!p.allFinite()) {
         ++st.dropped_nonfinite;
@@ -257,9 +296,9 @@ ScanIntegrationStats OccupancyGrid::integrate_scan(const std::vector<Vec3f>& poi
         continue;
       }
       const VoxelKey to_key = key_of_point<VoxelKey>(to, 1.0);
-      ray.to = to;
-      ray.tile = tile_of(rp);
-      ray.steps = static_cast<uint32_t>((to_key - from_key).cwiseAbs().sum());
+      rays[j] = to;
+      const auto steps = static_cast<uint32_t>((to_key - from_key).cwiseAbs().sum());
+      sort_keys[j] = tile_of(rp) << 10 | std::min(steps, 1023u);
       m.lo = m.lo.cwiseMin(to_key), m.hi = m.hi.cwiseMax(to_key);
       if (!hit) {
         ++st.beyond_max_range;
@@ -286,20 +325,21 @@ ScanIntegrationStats OccupancyGrid::integrate_scan(const std::vector<Vec3f>& poi
   {
     constexpr uint32_t kBuckets = 1024;
     std::vector<uint32_t> first(kBuckets + 1, 0);
-    for (const Ray& r : rays)
-      if (r.tile != kNoTile) ++first[std::min(r.steps, kBuckets - 1) + 1];
+    for (const uint32_t k : sort_keys)
+      if (k != kNoKey) ++first[(k & (kBuckets - 1)) + 1];
     std::partial_sum(first.begin(), first.end(), first.begin());
     by_length.resize(first[kBuckets]);
-    for (uint32_t i = 0; i < rays.size(); ++i)
-      if (rays[i].tile != kNoTile) by_length[first[std::min(rays[i].steps, kBuckets - 1)]++] = i;
+    for (uint32_t i = 0; i < sort_keys.size(); ++i)
+      if (sort_keys[i] != kNoKey) by_length[first[sort_keys[i] & (kBuckets - 1)]++] = i;
   }
   const auto num_cast = static_cast<uint32_t>(by_length.size());
   std::vector<Vec3d> ends(num_cast);
   {
     std::vector<uint32_t> next(kNoTile + 1, 0);
-    for (const uint32_t i : by_length) ++next[rays[i].tile + 1];
+    for (const uint32_t k : sort_keys)
+      if (k != kNoKey) ++next[(k >> 10) + 1];
     std::partial_sum(next.begin(), next.end(), next.begin());
-    for (const uint32_t i : by_length) ends[next[rays[i].tile]++] = rays[i].to;
+    for (const uint32_t i : by_length) ends[next[sort_keys[i] >> 10]++] = rays[i];
   }
   const float miss = params_.log_odds_miss;
   tbb::parallel_for(tbb::blocked_range<uint32_t>(0, (num_cast + 7) / 8, 64), [&](const tbb::blocked_range<uint32_t>& gr) {
@@ -322,19 +362,19 @@ ScanIntegrationStats OccupancyGrid::integrate_scan(const std::vector<Vec3f>& poi
   });
 
   if (use_bitmap) {
-    // The bricks of the marked bounding box, one more voxel around it for rays that round off
-    // past a corner at their end.
-    std::vector<const uint64_t*> maps;
+    // The bricks of the marked bounding box, two more voxels around it for rays that round off
+    // past a corner at their end. The pass clears what it reads.
+    std::vector<uint64_t*> maps;
     Eigen::Vector3i lo = from_key, hi = from_key;
-    for (const Marks& m : marks) {
+    for (Marks& m : marks) {
       maps.push_back(m.words.data());
       lo = lo.cwiseMin(m.lo), hi = hi.cwiseMax(m.hi);
     }
     const int last = (1 << cube.side_bits) - 1;
     Eigen::Vector3i blo, bhi;
     for (int a = 0; a < 3; ++a) {
-      blo[a] = std::clamp((lo[a] - 1 - cube.lo[a]) >> kBlockBits, 0, last);
-      bhi[a] = std::clamp((hi[a] + 1 - cube.lo[a]) >> kBlockBits, 0, last);
+      blo[a] = std::clamp((lo[a] - 2 - cube.lo[a]) >> kBlockBits, 0, last);
+      bhi[a] = std::clamp((hi[a] + 2 - cube.lo[a]) >> kBlockBits, 0, last);
     }
     const int nx = bhi.x() - blo.x() + 1, ny = bhi.y() - blo.y() + 1, nz = bhi.z() - blo.z() + 1;
     const std::size_t hits_at = cube.num_words();
@@ -347,8 +387,11 @@ ScanIntegrationStats OccupancyGrid::integrate_scan(const std::vector<Vec3f>& poi
         for (int bx = blo.x(); bx < blo.x() + nx; ++bx) {
           const std::size_t brick = row_first | static_cast<std::size_t>(bx);
           uint64_t hits[8] = {}, misses[8] = {}, any = 0;
-          for (const uint64_t* m : maps)
-            for (int z = 0; z < 8; ++z) misses[z] |= m[brick * 8 + z], hits[z] |= m[hits_at + brick * 8 + z];
+          for (uint64_t* m : maps)
+            for (int z = 0; z < 8; ++z) {
+              misses[z] |= std::exchange(m[brick * 8 + z], 0);
+              hits[z] |= std::exchange(m[hits_at + brick * 8 + z], 0);
+            }
           for (int z = 0; z < 8; ++z) any |= misses[z] | hits[z];
           if (!any) continue;
           const BlockKey bk = cube.block_of_brick(brick);
@@ -368,6 +411,10 @@ ScanIntegrationStats OccupancyGrid::integrate_scan(const std::vector<Vec3f>& poi
         }
       }
     });
+    for (Marks& m : marks) {  // where finished lanes wrote (occupancy_raycast.cpp)
+      std::fill_n(m.words.data() + hits_at - 8, 8, 0);
+      m.words.set_clear();
+    }
     apply_pending(&ScanContext::pending_hits, hit);
   }
   apply_pending(&ScanContext::pending, miss);
