@@ -109,32 +109,69 @@ void mark_ray(const Origin& o, const Ray& r, uint64_t* words) {
 
 SLAMVDB_AVX2 inline __m256i load8(const int32_t* p) { return _mm256_load_si256(reinterpret_cast<const __m256i*>(p)); }
 
+// setup() for eight rays, four per register of doubles: the same operations in the same order
+// (no FMA), so the same bits. 1 / |d| is -1 / d exactly when d < 0.
+SLAMVDB_AVX2 void setup8(const Origin& o, const Vec3d* to, __m256i* t, __m256i* d, __m256i* inc, __m256i& steps) {
+  const __m256d zero = _mm256_setzero_pd(), two = _mm256_set1_pd(2.0), one = _mm256_set1_pd(1.0),
+                scale = _mm256_set1_pd(kFixedOne), half = _mm256_set1_pd(0.5),
+                sign = _mm256_set1_pd(-0.0);
+  steps = _mm256_setzero_si256();
+  auto fixed = [&](__m256d v) SLAMVDB_AVX2 {
+    return _mm256_cvttpd_epi32(_mm256_add_pd(_mm256_mul_pd(_mm256_min_pd(v, two), scale), half));
+  };
+  for (int a = 0; a < 3; ++a) {
+    const __m256d f = _mm256_set1_pd(o.f[a]), up = _mm256_set1_pd(o.k[a] + 1 - o.f[a]),
+                  down = _mm256_set1_pd(o.f[a] - o.k[a]);
+    __m128i tq[2], dq[2], eq[2];
+    __m256d pos[2], neg[2];
+    for (int h = 0; h < 2; ++h) {
+      const Vec3d* r = to + 4 * h;
+      const __m256d e = _mm256_setr_pd(r[0][a], r[1][a], r[2][a], r[3][a]);
+      const __m256d dd = _mm256_sub_pd(e, f);
+      pos[h] = _mm256_cmp_pd(dd, zero, _CMP_GT_OQ), neg[h] = _mm256_cmp_pd(dd, zero, _CMP_LT_OQ);
+      const __m256d moving = _mm256_or_pd(pos[h], neg[h]);
+      const __m256d td = _mm256_div_pd(one, _mm256_andnot_pd(sign, dd));
+      const __m256d tm = _mm256_mul_pd(_mm256_blendv_pd(down, up, pos[h]), td);
+      tq[h] = fixed(_mm256_blendv_pd(two, tm, moving));
+      dq[h] = fixed(_mm256_blendv_pd(two, td, moving));
+      eq[h] = _mm256_cvttpd_epi32(_mm256_floor_pd(e));
+    }
+    t[a] = _mm256_set_m128i(tq[1], tq[0]);
+    d[a] = _mm256_set_m128i(dq[1], dq[0]);
+    const __m256i e = _mm256_set_m128i(eq[1], eq[0]);
+    steps = _mm256_add_epi32(steps, _mm256_abs_epi32(_mm256_sub_epi32(e, _mm256_set1_epi32(o.k[a]))));
+    // Lane masks of the direction's sign, from the 64-bit comparison masks.
+    const __m256i perm = _mm256_setr_epi32(0, 2, 4, 6, 1, 3, 5, 7);
+    auto narrow = [&](__m256d m0, __m256d m1) SLAMVDB_AVX2 {
+      const __m256i lo = _mm256_permutevar8x32_epi32(_mm256_castpd_si256(m0), perm),
+                    hi = _mm256_permutevar8x32_epi32(_mm256_castpd_si256(m1), perm);
+      return _mm256_permute2x128_si256(lo, hi, 0x20);
+    };
+    const __m256i is_pos = narrow(pos[0], pos[1]), is_neg = narrow(neg[0], neg[1]);
+    inc[a] = _mm256_or_si256(_mm256_and_si256(is_pos, _mm256_set1_epi32(static_cast<int>(0u - o.mask[a]))), is_neg);
+  }
+}
+
 // Eight rays in the lanes of AVX2 registers, stepped together until the longest has ended (rays
 // come grouped by direction, so neighbours have similar lengths); lanes whose ray has ended write
 // to the dummy bit. The axis choice is a pair of comparisons and masks instead of branches.
 SLAMVDB_AVX2 void mark_segments_avx2(const Origin& o, std::span<const Vec3d> to, uint64_t* words) {
   const __m256i mx = _mm256_set1_epi32(static_cast<int>(o.mask[0])), my = _mm256_set1_epi32(static_cast<int>(o.mask[1])),
                 mz = _mm256_set1_epi32(static_cast<int>(o.mask[2]));
-  const __m256i dummy = _mm256_set1_epi32(static_cast<int>(o.dummy)), one = _mm256_set1_epi32(1);
+  const __m256i dummy = _mm256_set1_epi32(static_cast<int>(o.dummy)), one = _mm256_set1_epi32(1),
+                lanes = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
   for (std::size_t first = 0; first < to.size(); first += 8) {
-    alignas(32) int32_t lane[10][8];
-    int longest = 0;
-    for (int l = 0; l < 8; ++l) {
-      Ray r{};
-      r.steps = 0;
-      if (first + l < to.size()) r = setup(o, to[first + l]);
-      for (int a = 0; a < 3; ++a) {
-        lane[a][l] = r.t[a];
-        lane[3 + a][l] = r.d[a];
-        lane[6 + a][l] = static_cast<int32_t>(r.inc[a]);
-      }
-      lane[9][l] = r.steps;
-      longest = std::max(longest, r.steps);
-    }
-    __m256i tx = load8(lane[0]), ty = load8(lane[1]), tz = load8(lane[2]);
-    const __m256i dx = load8(lane[3]), dy = load8(lane[4]), dz = load8(lane[5]), ix = load8(lane[6]),
-                  iy = load8(lane[7]), iz = load8(lane[8]);
-    __m256i left = load8(lane[9]);  // steps left
+    const std::size_t count = std::min<std::size_t>(8, to.size() - first);
+    Vec3d group[8];  // the last group padded with its first ray, then given no steps
+    for (std::size_t l = 0; l < 8; ++l) group[l] = to[first + (l < count ? l : 0)];
+    __m256i t[3], d[3], inc[3], left;
+    setup8(o, group, t, d, inc, left);
+    if (count < 8) left = _mm256_and_si256(left, _mm256_cmpgt_epi32(_mm256_set1_epi32(static_cast<int>(count)), lanes));
+    alignas(32) int32_t steps[8];
+    _mm256_store_si256(reinterpret_cast<__m256i*>(steps), left);
+    const int longest = *std::max_element(steps, steps + 8);
+    __m256i tx = t[0], ty = t[1], tz = t[2];
+    const __m256i dx = d[0], dy = d[1], dz = d[2], ix = inc[0], iy = inc[1], iz = inc[2];
     __m256i x = _mm256_set1_epi32(static_cast<int>(o.start & o.mask[0])),
             y = _mm256_set1_epi32(static_cast<int>(o.start & o.mask[1])),
             z = _mm256_set1_epi32(static_cast<int>(o.start & o.mask[2]));
