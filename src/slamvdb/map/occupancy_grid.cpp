@@ -5,6 +5,7 @@
 #include <tbb/parallel_for.h>
 #include <xmmintrin.h>
 
+#include <algorithm>
 #include <atomic>
 #include <limits>
 #include <mutex>
@@ -259,9 +260,13 @@ ScanIntegrationStats OccupancyGrid::integrate_scan(const std::vector<Vec3f>& poi
   // Rays are prepared and the hits outside the cube applied in parallel. A cast ray's sort key is
   // its tile, then its length in voxels (10 bits, saturated); dropped rays get kNoKey.
   constexpr uint32_t kNoTile = 6 * kTiles * kTiles, kNoKey = ~0u;
-  std::vector<Vec3d> rays(points_sensor.size());  // end of the cleared segment, cell units
+  // End of each ray's cleared segment, cell units; not zeroed (megabytes, each written before read).
+  std::unique_ptr<Vec3d[]> rays(new Vec3d[points_sensor.size()]);
   std::vector<uint32_t> sort_keys(points_sensor.size());
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, rays.size(), 2048), [&](const tbb::blocked_range<std::size_t>& rr) {
+  const double min_range2 = params_.min_point_range * params_.min_point_range,
+               max_range2 = params_.max_point_range * params_.max_point_range,
+               clear_range2 = params_.max_clearing_range * params_.max_clearing_range;
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, points_sensor.size(), 2048), [&](const tbb::blocked_range<std::size_t>& rr) {
     ScanContext& ctx = contexts.local();
     ScanIntegrationStats& st = ctx.stats;
     Marks& m = marks.local();
@@ -273,22 +278,29 @@ ScanIntegrationStats OccupancyGrid::integrate_scan(const std::vector<Vec3f>& poi
         ++st.dropped_nonfinite;
         continue;
       }
-      const double range = p.cast<double>().norm();
-      if (range == 0.0) {
+      // Squared ranges against squared limits: the square root (and a division) only for the
+      // rays that are cut short.
+      const double range2 = p.cast<double>().squaredNorm();
+      if (range2 == 0.0) {
         ++st.dropped_no_return;
         continue;
       }
-      if (range < params_.min_point_range) {
+      if (range2 < min_range2) {
         ++st.dropped_too_close;
         continue;
       }
-      const bool hit = range <= params_.max_point_range;
-      // R p scaled instead of a unit direction times a length: one division per ray at most.
+      const bool hit = range2 <= max_range2;
+      // R p scaled instead of a unit direction times a length.
       const Vec3d rp = R * p.cast<double>();
-      auto scale = [range](double length) { return length == range ? 1.0 : length / range; };
-      const double length = hit ? range : params_.max_point_range;
-      const Vec3d end = (origin + rp * scale(length)) * inv_voxel_size_;
-      const Vec3d to = (origin + rp * scale(std::min(length, params_.max_clearing_range))) * inv_voxel_size_;
+      Vec3d end, to;
+      if (hit && range2 <= clear_range2) {
+        end = to = (origin + rp) * inv_voxel_size_;
+      } else {
+        const double range = std::sqrt(range2);
+        const double length = hit ? range : params_.max_point_range;
+        end = hit ? Vec3d((origin + rp) * inv_voxel_size_) : Vec3d((origin + rp * (length / range)) * inv_voxel_size_);
+        to = (origin + rp * (std::min(length, params_.max_clearing_range) / range)) * inv_voxel_size_;
+      }
       // Both ends of what the ray touches must be representable: the end point (a hit) and the end
       // of the cleared segment.
       if (!in_grid_extent(end) || !in_grid_extent(to)) {
@@ -321,30 +333,34 @@ ScanIntegrationStats OccupancyGrid::integrate_scan(const std::vector<Vec3f>& poi
   // Rays are cast grouped by direction (cube-map tiles) so that neighbouring rays mark
   // neighbouring words, and by length within a tile: they are cast eight at a time, for as many
   // steps as the longest of the eight needs (two stable counting sorts).
-  std::vector<uint32_t> by_length;
+  // Not zeroed (every element is written): these are megabytes.
+  std::unique_ptr<Vec3d[]> by_length;
+  std::unique_ptr<uint32_t[]> by_length_tile;
   {
     constexpr uint32_t kBuckets = 1024;
     std::vector<uint32_t> first(kBuckets + 1, 0);
     for (const uint32_t k : sort_keys)
       if (k != kNoKey) ++first[(k & (kBuckets - 1)) + 1];
     std::partial_sum(first.begin(), first.end(), first.begin());
-    by_length.resize(first[kBuckets]);
+    by_length.reset(new Vec3d[first[kBuckets]]), by_length_tile.reset(new uint32_t[first[kBuckets]]);
     for (uint32_t i = 0; i < sort_keys.size(); ++i)
-      if (sort_keys[i] != kNoKey) by_length[first[sort_keys[i] & (kBuckets - 1)]++] = i;
+      if (const uint32_t k = sort_keys[i]; k != kNoKey) {
+        const uint32_t at = first[k & (kBuckets - 1)]++;
+        by_length[at] = rays[i], by_length_tile[at] = k >> 10;
+      }
   }
-  const auto num_cast = static_cast<uint32_t>(by_length.size());
-  std::vector<Vec3d> ends(num_cast);
+  const auto num_cast = static_cast<uint32_t>(std::count_if(sort_keys.begin(), sort_keys.end(), [](uint32_t k) { return k != kNoKey; }));
+  Vec3d* const ends = rays.get();  // the rays, sorted (their original order is no longer needed)
   {
     std::vector<uint32_t> next(kNoTile + 1, 0);
-    for (const uint32_t k : sort_keys)
-      if (k != kNoKey) ++next[(k >> 10) + 1];
+    for (uint32_t i = 0; i < num_cast; ++i) ++next[by_length_tile[i] + 1];
     std::partial_sum(next.begin(), next.end(), next.begin());
-    for (const uint32_t i : by_length) ends[next[sort_keys[i] >> 10]++] = rays[i];
+    for (uint32_t i = 0; i < num_cast; ++i) ends[next[by_length_tile[i]]++] = by_length[i];
   }
   const float miss = params_.log_odds_miss;
   tbb::parallel_for(tbb::blocked_range<uint32_t>(0, (num_cast + 7) / 8, 64), [&](const tbb::blocked_range<uint32_t>& gr) {
     const uint32_t first = gr.begin() * 8, last = std::min(num_cast, gr.end() * 8);
-    const std::span<const Vec3d> segment(ends.data() + first, last - first);
+    const std::span<const Vec3d> segment(ends + first, last - first);
     if (use_bitmap) {
       mark_segments(cube, from, segment, marks.local().words.data());
       return;
