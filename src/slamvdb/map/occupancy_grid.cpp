@@ -8,7 +8,6 @@
 #include <algorithm>
 #include <atomic>
 #include <limits>
-#include <mutex>
 #include <numeric>
 #include <utility>
 
@@ -88,48 +87,6 @@ void OccupancyGrid::set_occupied_bit(Block& b, int i, bool occupied) {
 }
 
 namespace {
-// Bitmaps for integrate_scan, handed back clear: allocating and zeroing 4 MB per thread per scan
-// cost more than the update pass, which clears what it reads. Shared by every grid (a pool per grid
-// would multiply with the submaps); a scan takes one per thread that joins it. A scan that throws
-// drops its bitmaps instead of handing them back.
-class PooledBitmap {
- public:
-  explicit PooledBitmap(std::size_t words) {
-    {
-      std::lock_guard lock(mutex());
-      auto& spare = free_list();
-      for (auto it = spare.begin(); it != spare.end(); ++it)
-        if (it->size() == words) {
-          words_ = std::move(*it);
-          spare.erase(it);
-          return;
-        }
-    }
-    words_.assign(words, 0);
-  }
-  PooledBitmap(PooledBitmap&&) = default;
-  PooledBitmap& operator=(PooledBitmap&&) = delete;
-  ~PooledBitmap() {
-    if (!clear_ || words_.empty()) return;
-    std::lock_guard lock(mutex());
-    if (free_list().size() < 16) free_list().push_back(std::move(words_));
-  }
-  uint64_t* data() { return words_.data(); }
-  void set_clear() { clear_ = true; }  // every bit is 0 again
-
- private:
-  static std::mutex& mutex() {
-    static std::mutex m;
-    return m;
-  }
-  static std::vector<std::vector<uint64_t>>& free_list() {
-    static std::vector<std::vector<uint64_t>> spare;
-    return spare;
-  }
-  std::vector<uint64_t> words_;
-  bool clear_ = false;
-};
-
 // Population count without the POPCNT instruction (not in baseline x86-64; the compiler's builtin
 // then calls a slow library routine).
 inline int popcount64(uint64_t x) {

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <mutex>
 
 namespace slamvdb {
 
@@ -212,6 +213,37 @@ void mark_segments(const RayCube& cube, const Vec3d& from, std::span<const Vec3d
   static const bool avx2 = __builtin_cpu_supports("avx2");
   if (avx2) mark_segments_avx2(Origin(cube, from), to, words);
   else mark_segments_scalar(cube, from, to, words);
+}
+
+namespace {
+std::mutex& pool_mutex() {
+  static std::mutex m;
+  return m;
+}
+std::vector<std::vector<uint64_t>>& pool() {
+  static std::vector<std::vector<uint64_t>> spare;
+  return spare;
+}
+}  // namespace
+
+PooledBitmap::PooledBitmap(std::size_t words) {
+  {
+    std::lock_guard lock(pool_mutex());
+    auto& spare = pool();
+    for (auto it = spare.begin(); it != spare.end(); ++it)
+      if (it->size() == words) {
+        words_ = std::move(*it);
+        spare.erase(it);
+        return;
+      }
+  }
+  words_.assign(words, 0);
+}
+
+PooledBitmap::~PooledBitmap() {
+  if (!clear_ || words_.empty()) return;
+  std::lock_guard lock(pool_mutex());
+  if (pool().size() < 16) pool().push_back(std::move(words_));
 }
 
 }  // namespace slamvdb

@@ -9,6 +9,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <span>
+#include <vector>
 
 #include "slamvdb/core/types.hpp"
 #include "slamvdb/map/keys.hpp"
@@ -54,5 +55,23 @@ void mark_segments(const RayCube& cube, const Vec3d& from, std::span<const Vec3d
 
 // The same without AVX2 (tests compare the two).
 void mark_segments_scalar(const RayCube& cube, const Vec3d& from, std::span<const Vec3d> to, uint64_t* words);
+
+// Bitmaps for integrate_scan, handed back clear: allocating and zeroing 4 MB per thread per scan
+// cost more than the update pass, which clears what it reads. Shared by every grid (a pool per grid
+// would multiply with the submaps); a scan takes one per thread that joins it. A bitmap not marked
+// clear (a scan that threw) is dropped instead of handed back.
+class PooledBitmap {
+ public:
+  explicit PooledBitmap(std::size_t words);  // all zero
+  PooledBitmap(PooledBitmap&&) = default;
+  PooledBitmap& operator=(PooledBitmap&&) = delete;
+  ~PooledBitmap();
+  uint64_t* data() { return words_.data(); }
+  void set_clear() { clear_ = true; }  // every bit is 0 again
+
+ private:
+  std::vector<uint64_t> words_;
+  bool clear_ = false;
+};
 
 }  // namespace slamvdb
