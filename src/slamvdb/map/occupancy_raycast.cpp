@@ -216,24 +216,28 @@ void mark_segments(const RayCube& cube, const Vec3d& from, std::span<const Vec3d
 }
 
 namespace {
-std::mutex& pool_mutex() {
-  static std::mutex m;
-  return m;
-}
-std::vector<std::vector<uint64_t>>& pool() {
-  static std::vector<std::vector<uint64_t>> spare;
-  return spare;
+// At most 64 MB kept: enough for two threads' bitmaps at a 64-block cube, or many at the defaults.
+constexpr std::size_t kMaxPooledWords = std::size_t{8} << 20;
+struct Pool {
+  std::mutex mutex;
+  std::vector<std::vector<uint64_t>> spare;
+  std::size_t words = 0;  // in `spare`
+};
+Pool& pool() {
+  static Pool p;
+  return p;
 }
 }  // namespace
 
 PooledBitmap::PooledBitmap(std::size_t words) {
   {
-    std::lock_guard lock(pool_mutex());
-    auto& spare = pool();
-    for (auto it = spare.begin(); it != spare.end(); ++it)
+    Pool& p = pool();
+    std::lock_guard lock(p.mutex);
+    for (auto it = p.spare.begin(); it != p.spare.end(); ++it)
       if (it->size() == words) {
         words_ = std::move(*it);
-        spare.erase(it);
+        p.spare.erase(it);
+        p.words -= words;
         return;
       }
   }
@@ -242,8 +246,11 @@ PooledBitmap::PooledBitmap(std::size_t words) {
 
 PooledBitmap::~PooledBitmap() {
   if (!clear_ || words_.empty()) return;
-  std::lock_guard lock(pool_mutex());
-  if (pool().size() < 16) pool().push_back(std::move(words_));
+  Pool& p = pool();
+  std::lock_guard lock(p.mutex);
+  if (p.words + words_.size() > kMaxPooledWords) return;
+  p.words += words_.size();
+  p.spare.push_back(std::move(words_));
 }
 
 }  // namespace slamvdb
