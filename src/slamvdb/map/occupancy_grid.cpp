@@ -5,11 +5,14 @@
 #include <tbb/parallel_for.h>
 #include <xmmintrin.h>
 
+#include <algorithm>
 #include <atomic>
 #include <limits>
 #include <numeric>
+#include <utility>
 
 #include "slamvdb/core/error.hpp"
+#include "slamvdb/map/occupancy_raycast.hpp"
 
 namespace slamvdb {
 
@@ -57,7 +60,8 @@ OccupancyGrid::Block& OccupancyGrid::block_at(const BlockKey& block_key) {
 struct OccupancyGrid::ScanContext {
   ScanIntegrationStats stats;
   std::vector<VoxelKey> freed;
-  std::vector<VoxelKey> pending;  // voxels of blocks that do not exist yet (created serially)
+  std::vector<VoxelKey> pending;       // voxels of blocks that do not exist yet (created serially)
+  std::vector<VoxelKey> pending_hits;  // the same for hits marked in the bitmap
 };
 
 // Pointers to the blocks of the cube around the sensor that clearing rays reach, so that casting
@@ -122,29 +126,26 @@ ScanIntegrationStats OccupancyGrid::integrate_scan(const std::vector<Vec3f>& poi
                             params_.voxel_size));
   const uint32_t scan = ++scan_counter_;
 
-  struct Ray {
-    Vec3d to;       // end of the cleared segment, cell units
-    uint32_t tile;  // direction cell (see below)
-  };
   // Rays are grouped by direction: the cells of a cube map around the sensor, kTiles x kTiles per
   // face (about 5.6 degrees at 16).
   constexpr int kTiles = 16;
   auto tile_of = [](const Vec3d& d) {
     const Vec3d a = d.cwiseAbs();
     const int face = a.x() >= a.y() && a.x() >= a.z() ? 0 : (a.y() >= a.z() ? 1 : 2);
-    const double m = a[face], u = d[(face + 1) % 3] / m, v = d[(face + 2) % 3] / m;
+    const double m = 1.0 / a[face], u = d[(face + 1) % 3] * m, v = d[(face + 2) % 3] * m;
     const int iu = std::min(kTiles - 1, static_cast<int>((u + 1) * (kTiles / 2))),
               iv = std::min(kTiles - 1, static_cast<int>((v + 1) * (kTiles / 2)));
     return static_cast<uint32_t>(((2 * face + (d[face] < 0)) * kTiles + iu) * kTiles + iv);
   };
   const Vec3d from = origin * inv_voxel_size_;
+  const VoxelKey from_key = key_of_point<VoxelKey>(from, 1.0);
   // Clearing rays stay within `reach` voxels of the sensor's voxel.
   const int reach = static_cast<int>(std::ceil(params_.max_clearing_range * inv_voxel_size_)) + 1;
-  constexpr int kMaxWindowHalf = 32;  // 65^3 blocks: 2 MB of pointers, 17 MB of bitmap (below)
+  constexpr int kMaxWindowHalf = 32;  // 65^3 blocks: 2 MB of pointers
   BlockWindow window;
   {
     const int half = std::min(kMaxWindowHalf, (reach + kBlockSide - 1) / kBlockSide + 1);
-    const BlockKey center = block_of(key_of_point<VoxelKey>(from, 1.0));
+    const BlockKey center = block_of(from_key);
     window.lo = BlockKey(center.x() - half, center.y() - half, center.z() - half);
     window.side = 2 * half + 1;
     window.slots.assign(static_cast<std::size_t>(window.side) * window.side * window.side, nullptr);
@@ -177,10 +178,10 @@ ScanIntegrationStats OccupancyGrid::integrate_scan(const std::vector<Vec3f>& poi
     if (std::atomic_ref<uint32_t>(stamp).exchange(scan, std::memory_order_relaxed) == scan) return;
     update_voxel(b, key, i, delta, ctx);
   };
-  auto apply_pending = [&](float delta) {
+  auto apply_pending = [&](std::vector<VoxelKey> ScanContext::*list, float delta) {
     ScanContext& mine = contexts.local();
     for (ScanContext& ctx : contexts) {
-      for (const VoxelKey& k : ctx.pending) {
+      for (const VoxelKey& k : ctx.*list) {
         const BlockKey bk = block_of(k);
         Block* b = find_block(bk);
         if (!b) {
@@ -189,95 +190,139 @@ ScanIntegrationStats OccupancyGrid::integrate_scan(const std::vector<Vec3f>& poi
         }
         update(*b, k, delta, mine);
       }
-      ctx.pending.clear();
+      (ctx.*list).clear();
     }
   };
 
-  // Rays are prepared and their hits applied in parallel, all hits before any miss, so that a voxel
-  // that is both an end point and on another ray counts as a hit (OctoMap's rule: the free set
-  // excludes the occupied set). A dropped ray gets the tile kNoTile.
-  constexpr uint32_t kNoTile = 6 * kTiles * kTiles;
-  std::vector<Ray> rays(points_sensor.size());
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, rays.size(), 2048), [&](const tbb::blocked_range<std::size_t>& rr) {
+  // Within the cube that the clearing range reaches around the sensor (occupancy_raycast.hpp),
+  // hits and misses are only marked, one bit per voxel, each thread in its own bitmaps (no atomics
+  // in the hot loops): most of a scan's ~10^7 ray crossings are of voxels an earlier ray crossed
+  // already, and a bit stays in cache where the cells (8 bytes, spread over blocks) do not. An
+  // update pass then visits every voxel marked in any of them once, in parallel over blocks, so no
+  // two threads touch the same voxel and the result is exactly the union of the rays whatever the
+  // threads. A voxel that is both an end point and on another ray counts as a hit (OctoMap's rule:
+  // the free set excludes the occupied set). When the clearing range needs a cube larger than
+  // RayCube allows, rays update cells directly instead, all hits before any miss.
+  const RayCube cube = RayCube::around(from_key, reach);
+  const bool use_bitmap = cube.side_bits != 0;
+  struct Marks {
+    PooledBitmap words;      // misses, then hits (cube.num_words() each)
+    Eigen::Vector3i lo, hi;  // bounding box of what was marked
+  };
+  // Per scan, not per thread: a thread's bitmap could be reused by a scan of another map that this
+  // thread picks up while it waits inside ours.
+  tbb::enumerable_thread_specific<Marks> marks(
+      [&] { return Marks{PooledBitmap(use_bitmap ? 2 * cube.num_words() : 0), from_key, from_key}; });
+
+  // Rays are prepared and the hits outside the cube applied in parallel. A cast ray's sort key is
+  // its tile, then its length in voxels (10 bits, saturated); dropped rays get kNoKey.
+  constexpr uint32_t kNoTile = 6 * kTiles * kTiles, kNoKey = ~0u;
+  // End of each ray's cleared segment, cell units; not zeroed (megabytes, each written before read).
+  std::unique_ptr<Vec3d[]> rays(new Vec3d[points_sensor.size()]);
+  std::vector<uint32_t> sort_keys(points_sensor.size());
+  const double min_range2 = params_.min_point_range * params_.min_point_range,
+               max_range2 = params_.max_point_range * params_.max_point_range,
+               clear_range2 = params_.max_clearing_range * params_.max_clearing_range;
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, points_sensor.size(), 2048), [&](const tbb::blocked_range<std::size_t>& rr) {
     ScanContext& ctx = contexts.local();
     ScanIntegrationStats& st = ctx.stats;
+    Marks& m = marks.local();
+    uint64_t* const hit_words = m.words.data() + (use_bitmap ? cube.num_words() : 0);
     for (std::size_t j = rr.begin(); j != rr.end(); ++j) {
-      Ray& ray = rays[j];
-      ray.tile = kNoTile;
+      sort_keys[j] = kNoKey;
       const Vec3f& p = points_sensor[j];
       if (!p.allFinite()) {
         ++st.dropped_nonfinite;
         continue;
       }
-      const double range = p.cast<double>().norm();
-      if (range == 0.0) {
+      // Squared ranges against squared limits: the square root (and a division) only for the
+      // rays that are cut short.
+      const double range2 = p.cast<double>().squaredNorm();
+      if (range2 == 0.0) {
         ++st.dropped_no_return;
         continue;
       }
-      if (range < params_.min_point_range) {
+      if (range2 < min_range2) {
         ++st.dropped_too_close;
         continue;
       }
-      const bool hit = range <= params_.max_point_range;
-      const Vec3d dir = R * (p.cast<double>() / range);
-      const double length = hit ? range : params_.max_point_range;
+      const bool hit = range2 <= max_range2;
+      // R p scaled instead of a unit direction times a length.
+      const Vec3d rp = R * p.cast<double>();
+      Vec3d end, to;
+      if (hit && range2 <= clear_range2) {
+        end = to = (origin + rp) * inv_voxel_size_;
+      } else {
+        const double range = std::sqrt(range2);
+        const double length = hit ? range : params_.max_point_range;
+        end = hit ? Vec3d((origin + rp) * inv_voxel_size_) : Vec3d((origin + rp * (length / range)) * inv_voxel_size_);
+        to = (origin + rp * (std::min(length, params_.max_clearing_range) / range)) * inv_voxel_size_;
+      }
       // Both ends of what the ray touches must be representable: the end point (a hit) and the end
       // of the cleared segment.
-      const Vec3d end = (origin + dir * length) * inv_voxel_size_;
-      const Vec3d to = (origin + dir * std::min(length, params_.max_clearing_range)) * inv_voxel_size_;
       if (!in_grid_extent(end) || !in_grid_extent(to)) {
         ++st.dropped_out_of_extent;
         continue;
       }
-      ray.to = to;
-      ray.tile = tile_of(dir);
+      const VoxelKey to_key = key_of_point<VoxelKey>(to, 1.0);
+      rays[j] = to;
+      const auto steps = static_cast<uint32_t>((to_key - from_key).cwiseAbs().sum());
+      sort_keys[j] = tile_of(rp) << 10 | std::min(steps, 1023u);
+      m.lo = m.lo.cwiseMin(to_key), m.hi = m.hi.cwiseMax(to_key);
       if (!hit) {
         ++st.beyond_max_range;
         continue;
       }
-      const VoxelKey k = key_of_point<VoxelKey>(end, 1.0);
-      if (Block* b = find_block(block_of(k))) update(*b, k, params_.log_odds_hit, ctx);
-      else ctx.pending.push_back(k);
+      const VoxelKey k = to == end ? to_key : key_of_point<VoxelKey>(end, 1.0);
+      if (use_bitmap && cube.contains(k)) {
+        const uint32_t bit = cube.bit_of(k);
+        hit_words[bit >> 6] |= uint64_t{1} << (bit & 63);
+        m.lo = m.lo.cwiseMin(k), m.hi = m.hi.cwiseMax(k);
+      } else if (Block* b = find_block(block_of(k))) {
+        update(*b, k, params_.log_odds_hit, ctx);
+      } else {
+        ctx.pending.push_back(k);
+      }
     }
   });
-  apply_pending(params_.log_odds_hit);
+  apply_pending(&ScanContext::pending, params_.log_odds_hit);
 
-  // Misses, in two passes. Casting only marks the voxels rays cross, one bit each, in a bitmap of
-  // the cube the clearing range reaches around the sensor: most of a scan's ~10^7 crossings are of
-  // voxels an earlier ray crossed already, and a bit test stays in cache where the cells (8 bytes,
-  // spread over blocks) do not. The update pass then visits every marked voxel once, in parallel
-  // over blocks, so no two threads touch the same voxel and the result is exactly the union of the
-  // rays whatever the threads. Rays are cast grouped by direction (cube-map tiles) so that
-  // neighbouring rays mark neighbouring words.
-  std::vector<uint32_t> start(kNoTile + 2, 0), order(rays.size());
-  for (const Ray& r : rays) ++start[r.tile + 1];
-  std::partial_sum(start.begin(), start.end(), start.begin());
+  // Rays are cast grouped by direction (cube-map tiles) so that neighbouring rays mark
+  // neighbouring words, and by length within a tile: they are cast eight at a time, for as many
+  // steps as the longest of the eight needs (two stable counting sorts).
+  // Not zeroed (every element is written): these are megabytes.
+  std::unique_ptr<Vec3d[]> by_length;
+  std::unique_ptr<uint32_t[]> by_length_tile;
   {
-    std::vector<uint32_t> next(start.begin(), start.end() - 1);
-    for (uint32_t i = 0; i < rays.size(); ++i) order[next[rays[i].tile]++] = i;
+    constexpr uint32_t kBuckets = 1024;
+    std::vector<uint32_t> first(kBuckets + 1, 0);
+    for (const uint32_t k : sort_keys)
+      if (k != kNoKey) ++first[(k & (kBuckets - 1)) + 1];
+    std::partial_sum(first.begin(), first.end(), first.begin());
+    by_length.reset(new Vec3d[first[kBuckets]]), by_length_tile.reset(new uint32_t[first[kBuckets]]);
+    for (uint32_t i = 0; i < sort_keys.size(); ++i)
+      if (const uint32_t k = sort_keys[i]; k != kNoKey) {
+        const uint32_t at = first[k & (kBuckets - 1)]++;
+        by_length[at] = rays[i], by_length_tile[at] = k >> 10;
+      }
   }
-  // One 8^3 brick of bits (a cache line) per block of the window, same order: a ray crosses a
-  // brick in several steps, and the update pass finds each brick's block once. Allocated per scan
-  // (about 1.5 MB at the defaults): a buffer kept per thread could be reused by a scan of another
-  // map that this thread picks up while it waits inside ours. When the clearing range exceeds the
-  // window, rays update the cells directly instead.
-  const bool use_bitmap = window.side < 2 * kMaxWindowHalf + 1;
-  std::vector<uint64_t> bitmap(use_bitmap ? window.slots.size() * 8 : 0);
-  uint64_t* const words = bitmap.data();
+  const auto num_cast = static_cast<uint32_t>(std::count_if(sort_keys.begin(), sort_keys.end(), [](uint32_t k) { return k != kNoKey; }));
+  Vec3d* const ends = rays.get();  // the rays, sorted (their original order is no longer needed)
+  {
+    std::vector<uint32_t> next(kNoTile + 1, 0);
+    for (uint32_t i = 0; i < num_cast; ++i) ++next[by_length_tile[i] + 1];
+    std::partial_sum(next.begin(), next.end(), next.begin());
+    for (uint32_t i = 0; i < num_cast; ++i) ends[next[by_length_tile[i]]++] = by_length[i];
+  }
   const float miss = params_.log_odds_miss;
-  tbb::parallel_for(tbb::blocked_range<uint32_t>(0, kNoTile, 1), [&](const tbb::blocked_range<uint32_t>& tr) {
+  tbb::parallel_for(tbb::blocked_range<uint32_t>(0, (num_cast + 7) / 8, 64), [&](const tbb::blocked_range<uint32_t>& gr) {
+    const uint32_t first = gr.begin() * 8, last = std::min(num_cast, gr.end() * 8);
+    const std::span<const Vec3d> segment(ends + first, last - first);
+    if (use_bitmap) {
+      mark_segments(cube, from, segment, marks.local().words.data());
+      return;
+    }
     ScanContext& ctx = contexts.local();
-    // Copies: the compiler cannot keep values behind references in registers across the atomic
-    // writes below.
-    const int lx = window.lo.x() * kBlockSide, ly = window.lo.y() * kBlockSide, lz = window.lo.z() * kBlockSide;
-    const int side = window.side;
-    auto mark = [=](const VoxelKey& k) {
-      const int x = k.x() - lx, y = k.y() - ly, z = k.z() - lz;
-      const int brick = ((z >> kBlockBits) * side + (y >> kBlockBits)) * side + (x >> kBlockBits);
-      std::atomic_ref<uint64_t> w(words[brick * 8 + (z & 7)]);
-      const uint64_t m = uint64_t{1} << (((y & 7) << 3) | (x & 7));
-      if (!(w.load(std::memory_order_relaxed) & m)) w.fetch_or(m, std::memory_order_relaxed);
-    };
     BlockKey cached_key(std::numeric_limits<int>::min(), 0, 0);
     Block* block = nullptr;
     auto visit = [&](const VoxelKey& k) {
@@ -286,32 +331,66 @@ ScanIntegrationStats OccupancyGrid::integrate_scan(const std::vector<Vec3f>& poi
       if (block) update(*block, k, miss, ctx);
       else ctx.pending.push_back(k);
     };
-    for (uint32_t j = start[tr.begin()]; j != start[tr.end()]; ++j) {
-      const Ray& r = rays[order[j]];
-      if (use_bitmap) traverse_voxels(from, r.to, mark);
-      else traverse_voxels(from, r.to, visit);
-    }
+    for (const Vec3d& to : segment) traverse_voxels(from, to, visit);
   });
-  if (use_bitmap)
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, window.slots.size(), 16), [&](const tbb::blocked_range<std::size_t>& br) {
+
+  if (use_bitmap) {
+    // The bricks of the marked bounding box, two more voxels around it for rays that round off
+    // past a corner at their end. The pass clears what it reads.
+    std::vector<uint64_t*> maps;
+    Eigen::Vector3i lo = from_key, hi = from_key;
+    for (Marks& m : marks) {
+      maps.push_back(m.words.data());
+      lo = lo.cwiseMin(m.lo), hi = hi.cwiseMax(m.hi);
+    }
+    const int last = (1 << cube.side_bits) - 1;
+    Eigen::Vector3i blo, bhi;
+    for (int a = 0; a < 3; ++a) {
+      blo[a] = std::clamp((lo[a] - 2 - cube.lo[a]) >> kBlockBits, 0, last);
+      bhi[a] = std::clamp((hi[a] + 2 - cube.lo[a]) >> kBlockBits, 0, last);
+    }
+    const int nx = bhi.x() - blo.x() + 1, ny = bhi.y() - blo.y() + 1, nz = bhi.z() - blo.z() + 1;
+    const std::size_t hits_at = cube.num_words();
+    const float hit = params_.log_odds_hit;
+    tbb::parallel_for(tbb::blocked_range<int>(0, ny * nz, 1), [&](const tbb::blocked_range<int>& rows) {
       ScanContext& ctx = contexts.local();
-      const auto side = static_cast<std::size_t>(window.side);
-      for (std::size_t brick = br.begin(); brick != br.end(); ++brick) {
-        uint64_t* w = words + brick * 8;
-        if (!(w[0] | w[1] | w[2] | w[3] | w[4] | w[5] | w[6] | w[7])) continue;
-        const BlockKey bk(window.lo.x() + static_cast<int>(brick % side),
-                          window.lo.y() + static_cast<int>(brick / side % side),
-                          window.lo.z() + static_cast<int>(brick / (side * side)));
-        Block* const block = window.slots[brick];
-        for (int z = 0; z < 8; ++z)
-          for (uint64_t bits = w[z]; bits; bits &= bits - 1) {
-            const int i = (z << 6) | __builtin_ctzll(bits);  // the voxel's index in its block
-            if (block) update(*block, voxel_of(bk, i), miss, ctx);
-            else ctx.pending.push_back(voxel_of(bk, i));
+      for (int row = rows.begin(); row != rows.end(); ++row) {
+        const std::size_t row_first = (static_cast<std::size_t>(blo.z() + row / ny) << (2 * cube.side_bits)) |
+                                      (static_cast<std::size_t>(blo.y() + row % ny) << cube.side_bits);
+        for (int bx = blo.x(); bx < blo.x() + nx; ++bx) {
+          const std::size_t brick = row_first | static_cast<std::size_t>(bx);
+          uint64_t hits[8] = {}, misses[8] = {}, any = 0;
+          for (uint64_t* m : maps)
+            for (int z = 0; z < 8; ++z) {
+              misses[z] |= std::exchange(m[brick * 8 + z], 0);
+              hits[z] |= std::exchange(m[hits_at + brick * 8 + z], 0);
+            }
+          for (int z = 0; z < 8; ++z) any |= misses[z] | hits[z];
+          if (!any) continue;
+          const BlockKey bk = cube.block_of_brick(brick);
+          Block* const block = find_block(bk);
+          // The only update of these voxels in this scan: no other thread has this block.
+          auto apply = [&](int i, float delta, std::vector<VoxelKey>& pending) {
+            if (!block) return pending.push_back(voxel_of(bk, i));
+            block->cells[i].stamp = scan;
+            update_voxel(*block, voxel_of(bk, i), i, delta, ctx);
+          };
+          for (int z = 0; z < 8; ++z) {
+            for (uint64_t bits = hits[z]; bits; bits &= bits - 1)
+              apply((z << 6) | __builtin_ctzll(bits), hit, ctx.pending_hits);  // the voxel's index in its block
+            for (uint64_t bits = misses[z] & ~hits[z]; bits; bits &= bits - 1)
+              apply((z << 6) | __builtin_ctzll(bits), miss, ctx.pending);
           }
+        }
       }
     });
-  apply_pending(miss);
+    for (Marks& m : marks) {  // where finished lanes wrote (occupancy_raycast.cpp)
+      std::fill_n(m.words.data() + hits_at - 8, 8, 0);
+      m.words.set_clear();
+    }
+    apply_pending(&ScanContext::pending_hits, hit);
+  }
+  apply_pending(&ScanContext::pending, miss);
 
   for (const ScanContext& ctx : contexts) {
     stats += ctx.stats;

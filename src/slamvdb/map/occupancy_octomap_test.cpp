@@ -78,8 +78,8 @@ void expect_same_as_octomap(const std::vector<std::vector<Vec3f>>& scans, const 
               100.0 * same / ours, 100.0 * occupied_mismatch / grid.num_occupied_voxels(),
               static_cast<double>(theirs) / ours);
   ASSERT_GT(ours, min_voxels);
-  // Both trace rays with their own DDA and ours stops rays early (occupancy_grid.cpp); they may
-  // differ only where a ray grazes a voxel corner.
+  // Both trace rays with their own DDA, ours with fixed-point crossing parameters
+  // (occupancy_raycast.hpp); they may differ only where a ray grazes a voxel edge or corner.
   EXPECT_GT(static_cast<double>(same) / ours, 0.995) << same << " of " << ours;
   EXPECT_LT(static_cast<double>(occupied_mismatch) / grid.num_occupied_voxels(), 0.01);
   EXPECT_NEAR(static_cast<double>(theirs) / ours, 1.0, 0.005);
@@ -103,7 +103,7 @@ TEST(OccupancyVsOctoMap, SameLogOddsVoxelByVoxel) {
   expect_same_as_octomap(scans, drive_poses(4), 50000);
 }
 
-// A full 2048-column scan (as the benchmark's): the denser the rays, the earlier they stop.
+// A full 2048-column scan (as the benchmark's): rays close together, cast eight at a time.
 TEST(OccupancyVsOctoMap, SameLogOddsVoxelByVoxelDenseScan) {
   std::mt19937 rng(5);
   std::vector<std::vector<Vec3f>> scans;

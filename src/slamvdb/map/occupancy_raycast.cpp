@@ -1,0 +1,256 @@
+#include "slamvdb/map/occupancy_raycast.hpp"
+
+#include <immintrin.h>
+
+#include <algorithm>
+#include <cmath>
+#include <mutex>
+
+namespace slamvdb {
+
+RayCube RayCube::around(const VoxelKey& center, int reach) {
+  RayCube cube;
+  int lo_block[3], blocks = 0;
+  for (int a = 0; a < 3; ++a) {
+    lo_block[a] = (center[a] - reach) >> kBlockBits;
+    blocks = std::max(blocks, ((center[a] + reach) >> kBlockBits) - lo_block[a] + 1);
+  }
+  int bits = 1;
+  while ((1 << bits) < blocks) ++bits;
+  if (bits > 6) return cube;  // side_bits 0: too large
+  cube.side_bits = bits;
+  cube.lo = VoxelKey(lo_block[0] * kBlockSide, lo_block[1] * kBlockSide, lo_block[2] * kBlockSide);
+  return cube;
+}
+
+namespace {
+
+// Axis a's coordinate c (relative to the cube) in its bits of the index, and the mask of those bits.
+uint32_t dilate(int c, int axis, int side_bits) {
+  const auto u = static_cast<uint32_t>(c);
+  return ((u & 7u) << (3 * axis)) | ((u >> 3) << (9 + axis * side_bits));
+}
+uint32_t axis_mask(int axis, int side_bits) {
+  return (7u << (3 * axis)) | (((1u << side_bits) - 1) << (9 + axis * side_bits));
+}
+
+// Crossing parameters (0 at `from`, 1 at `to`) in fixed point with 29 fractional bits. Parameters
+// beyond 2 are clamped to 2: a segment ends at 1, so they are never the smallest while the ray still
+// has steps left, and a step then adds at most 2, so no sum overflows.
+constexpr double kFixedOne = 0x1p29;
+inline int32_t to_fixed(double t) { return static_cast<int32_t>(std::min(t, 2.0) * kFixedOne + 0.5); }
+
+// What every ray from one origin shares.
+struct Origin {
+  double f[3];     // `from`
+  int k[3];        // its voxel
+  uint32_t start;  // that voxel's bit index
+  uint32_t mask[3];
+  uint32_t dummy;  // a bit of the extra brick: where lanes whose ray has ended write
+  Origin(const RayCube& cube, const Vec3d& from) {
+    start = 0;
+    for (int a = 0; a < 3; ++a) {
+      f[a] = from[a];
+      k[a] = static_cast<int>(std::floor(from[a]));
+      start |= dilate(k[a] - cube.lo[a], a, cube.side_bits);
+      mask[a] = axis_mask(a, cube.side_bits);
+    }
+    dummy = static_cast<uint32_t>(cube.num_bricks()) << 9;
+  }
+};
+
+// One ray's stepping state: as traverse_voxels sets it up (same double expressions), then fixed
+// point. Stepping axis a adds inc[a] to the dilated coordinate: (c - mask) & mask is c + 1 in the
+// mask's bits, (c - 1) & mask is c - 1.
+struct Ray {
+  int32_t t[3], d[3];
+  uint32_t inc[3];
+  int32_t steps;  // voxels to visit: the Manhattan distance between the end voxels
+};
+
+inline Ray setup(const Origin& o, const Vec3d& to) {
+  Ray r;
+  r.steps = 0;
+  for (int a = 0; a < 3; ++a) {
+    const double f = o.f[a], d = to[a] - f;
+    r.steps += std::abs(static_cast<int>(std::floor(to[a])) - o.k[a]);
+    double t_max, t_delta;
+    if (d > 0) {
+      t_delta = 1.0 / d, t_max = (o.k[a] + 1 - f) * t_delta, r.inc[a] = 0u - o.mask[a];
+    } else if (d < 0) {
+      t_delta = -1.0 / d, t_max = (f - o.k[a]) * t_delta, r.inc[a] = ~0u;
+    } else {
+      t_delta = t_max = 2.0, r.inc[a] = 0;
+    }
+    r.t[a] = to_fixed(t_max);
+    r.d[a] = to_fixed(t_delta);
+  }
+  return r;
+}
+
+inline void mark(uint64_t* words, uint32_t bit) { words[bit >> 6] |= uint64_t{1} << (bit & 63); }
+
+// Same stepping rule as traverse_voxels: x when tx < ty and tx < tz, else y when ty < tz, else z.
+void mark_ray(const Origin& o, const Ray& r, uint64_t* words) {
+  int32_t tx = r.t[0], ty = r.t[1], tz = r.t[2];
+  uint32_t x = o.start & o.mask[0], y = o.start & o.mask[1], z = o.start & o.mask[2];
+  for (int n = r.steps; n > 0; --n) {
+    mark(words, x | y | z);
+    if (tx < ty) {
+      if (tx < tz) x = (x + r.inc[0]) & o.mask[0], tx += r.d[0];
+      else z = (z + r.inc[2]) & o.mask[2], tz += r.d[2];
+    } else {
+      if (ty < tz) y = (y + r.inc[1]) & o.mask[1], ty += r.d[1];
+      else z = (z + r.inc[2]) & o.mask[2], tz += r.d[2];
+    }
+  }
+}
+
+#define SLAMVDB_AVX2 __attribute__((target("avx2")))
+
+SLAMVDB_AVX2 inline __m256i load8(const int32_t* p) { return _mm256_load_si256(reinterpret_cast<const __m256i*>(p)); }
+
+// setup() for eight rays, four per register of doubles: the same operations in the same order
+// (no FMA), so the same bits. 1 / |d| is -1 / d exactly when d < 0.
+SLAMVDB_AVX2 void setup8(const Origin& o, const Vec3d* to, __m256i* t, __m256i* d, __m256i* inc, __m256i& steps) {
+  const __m256d zero = _mm256_setzero_pd(), two = _mm256_set1_pd(2.0), one = _mm256_set1_pd(1.0),
+                scale = _mm256_set1_pd(kFixedOne), half = _mm256_set1_pd(0.5),
+                sign = _mm256_set1_pd(-0.0);
+  steps = _mm256_setzero_si256();
+  auto fixed = [&](__m256d v) SLAMVDB_AVX2 {
+    return _mm256_cvttpd_epi32(_mm256_add_pd(_mm256_mul_pd(_mm256_min_pd(v, two), scale), half));
+  };
+  for (int a = 0; a < 3; ++a) {
+    const __m256d f = _mm256_set1_pd(o.f[a]), up = _mm256_set1_pd(o.k[a] + 1 - o.f[a]),
+                  down = _mm256_set1_pd(o.f[a] - o.k[a]);
+    __m128i tq[2], dq[2], eq[2];
+    __m256d pos[2], neg[2];
+    for (int h = 0; h < 2; ++h) {
+      const Vec3d* r = to + 4 * h;
+      const __m256d e = _mm256_setr_pd(r[0][a], r[1][a], r[2][a], r[3][a]);
+      const __m256d dd = _mm256_sub_pd(e, f);
+      pos[h] = _mm256_cmp_pd(dd, zero, _CMP_GT_OQ), neg[h] = _mm256_cmp_pd(dd, zero, _CMP_LT_OQ);
+      const __m256d moving = _mm256_or_pd(pos[h], neg[h]);
+      const __m256d td = _mm256_div_pd(one, _mm256_andnot_pd(sign, dd));
+      const __m256d tm = _mm256_mul_pd(_mm256_blendv_pd(down, up, pos[h]), td);
+      tq[h] = fixed(_mm256_blendv_pd(two, tm, moving));
+      dq[h] = fixed(_mm256_blendv_pd(two, td, moving));
+      eq[h] = _mm256_cvttpd_epi32(_mm256_floor_pd(e));
+    }
+    t[a] = _mm256_set_m128i(tq[1], tq[0]);
+    d[a] = _mm256_set_m128i(dq[1], dq[0]);
+    const __m256i e = _mm256_set_m128i(eq[1], eq[0]);
+    steps = _mm256_add_epi32(steps, _mm256_abs_epi32(_mm256_sub_epi32(e, _mm256_set1_epi32(o.k[a]))));
+    // Lane masks of the direction's sign, from the 64-bit comparison masks.
+    const __m256i perm = _mm256_setr_epi32(0, 2, 4, 6, 1, 3, 5, 7);
+    auto narrow = [&](__m256d m0, __m256d m1) SLAMVDB_AVX2 {
+      const __m256i lo = _mm256_permutevar8x32_epi32(_mm256_castpd_si256(m0), perm),
+                    hi = _mm256_permutevar8x32_epi32(_mm256_castpd_si256(m1), perm);
+      return _mm256_permute2x128_si256(lo, hi, 0x20);
+    };
+    const __m256i is_pos = narrow(pos[0], pos[1]), is_neg = narrow(neg[0], neg[1]);
+    inc[a] = _mm256_or_si256(_mm256_and_si256(is_pos, _mm256_set1_epi32(static_cast<int>(0u - o.mask[a]))), is_neg);
+  }
+}
+
+// Eight rays in the lanes of AVX2 registers, stepped together until the longest has ended (rays
+// come grouped by direction, so neighbours have similar lengths); lanes whose ray has ended write
+// to the dummy bit. The axis choice is a pair of comparisons and masks instead of branches.
+SLAMVDB_AVX2 void mark_segments_avx2(const Origin& o, std::span<const Vec3d> to, uint64_t* words) {
+  const __m256i mx = _mm256_set1_epi32(static_cast<int>(o.mask[0])), my = _mm256_set1_epi32(static_cast<int>(o.mask[1])),
+                mz = _mm256_set1_epi32(static_cast<int>(o.mask[2]));
+  const __m256i dummy = _mm256_set1_epi32(static_cast<int>(o.dummy)), one = _mm256_set1_epi32(1),
+                lanes = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
+  for (std::size_t first = 0; first < to.size(); first += 8) {
+    const std::size_t count = std::min<std::size_t>(8, to.size() - first);
+    Vec3d group[8];  // the last group padded with its first ray, then given no steps
+    for (std::size_t l = 0; l < 8; ++l) group[l] = to[first + (l < count ? l : 0)];
+    __m256i t[3], d[3], inc[3], left;
+    setup8(o, group, t, d, inc, left);
+    if (count < 8) left = _mm256_and_si256(left, _mm256_cmpgt_epi32(_mm256_set1_epi32(static_cast<int>(count)), lanes));
+    alignas(32) int32_t steps[8];
+    _mm256_store_si256(reinterpret_cast<__m256i*>(steps), left);
+    const int longest = *std::max_element(steps, steps + 8);
+    __m256i tx = t[0], ty = t[1], tz = t[2];
+    const __m256i dx = d[0], dy = d[1], dz = d[2], ix = inc[0], iy = inc[1], iz = inc[2];
+    __m256i x = _mm256_set1_epi32(static_cast<int>(o.start & o.mask[0])),
+            y = _mm256_set1_epi32(static_cast<int>(o.start & o.mask[1])),
+            z = _mm256_set1_epi32(static_cast<int>(o.start & o.mask[2]));
+    alignas(32) uint32_t bit[8];
+    for (int n = 0; n < longest; ++n) {
+      const __m256i active = _mm256_cmpgt_epi32(left, _mm256_setzero_si256());
+      left = _mm256_sub_epi32(left, one);
+      const __m256i idx = _mm256_blendv_epi8(dummy, _mm256_or_si256(_mm256_or_si256(x, y), z), active);
+      _mm256_store_si256(reinterpret_cast<__m256i*>(bit), idx);
+      for (int l = 0; l < 8; ++l) mark(words, bit[l]);
+      const __m256i x_first = _mm256_cmpgt_epi32(ty, tx);         // tx < ty
+      const __m256i t_min = _mm256_blendv_epi8(ty, tx, x_first);  // the smaller of tx, ty
+      const __m256i not_z = _mm256_cmpgt_epi32(tz, t_min);
+      const __m256i sx = _mm256_and_si256(x_first, not_z), sy = _mm256_andnot_si256(x_first, not_z);
+      tx = _mm256_add_epi32(tx, _mm256_and_si256(dx, sx));
+      ty = _mm256_add_epi32(ty, _mm256_and_si256(dy, sy));
+      tz = _mm256_add_epi32(tz, _mm256_andnot_si256(not_z, dz));
+      x = _mm256_and_si256(_mm256_add_epi32(x, _mm256_and_si256(ix, sx)), mx);
+      y = _mm256_and_si256(_mm256_add_epi32(y, _mm256_and_si256(iy, sy)), my);
+      z = _mm256_and_si256(_mm256_add_epi32(z, _mm256_andnot_si256(not_z, iz)), mz);
+    }
+  }
+}
+
+}  // namespace
+
+uint32_t RayCube::bit_of(const VoxelKey& k) const {
+  return dilate(k.x() - lo.x(), 0, side_bits) | dilate(k.y() - lo.y(), 1, side_bits) |
+         dilate(k.z() - lo.z(), 2, side_bits);
+}
+
+void mark_segments_scalar(const RayCube& cube, const Vec3d& from, std::span<const Vec3d> to, uint64_t* words) {
+  const Origin o(cube, from);
+  for (const Vec3d& t : to) mark_ray(o, setup(o, t), words);
+}
+
+void mark_segments(const RayCube& cube, const Vec3d& from, std::span<const Vec3d> to, uint64_t* words) {
+  static const bool avx2 = __builtin_cpu_supports("avx2");
+  if (avx2) mark_segments_avx2(Origin(cube, from), to, words);
+  else mark_segments_scalar(cube, from, to, words);
+}
+
+namespace {
+// At most 64 MB kept: enough for two threads' bitmaps at a 64-block cube, or many at the defaults.
+constexpr std::size_t kMaxPooledWords = std::size_t{8} << 20;
+struct Pool {
+  std::mutex mutex;
+  std::vector<std::vector<uint64_t>> spare;
+  std::size_t words = 0;  // in `spare`
+};
+Pool& pool() {
+  static Pool p;
+  return p;
+}
+}  // namespace
+
+PooledBitmap::PooledBitmap(std::size_t words) {
+  {
+    Pool& p = pool();
+    std::lock_guard lock(p.mutex);
+    for (auto it = p.spare.begin(); it != p.spare.end(); ++it)
+      if (it->size() == words) {
+        words_ = std::move(*it);
+        p.spare.erase(it);
+        p.words -= words;
+        return;
+      }
+  }
+  words_.assign(words, 0);
+}
+
+PooledBitmap::~PooledBitmap() {
+  if (!clear_ || words_.empty()) return;
+  Pool& p = pool();
+  std::lock_guard lock(p.mutex);
+  if (p.words + words_.size() > kMaxPooledWords) return;
+  p.words += words_.size();
+  p.spare.push_back(std::move(words_));
+}
+
+}  // namespace slamvdb

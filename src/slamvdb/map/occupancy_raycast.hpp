@@ -1,0 +1,77 @@
+#pragma once
+// Marking the voxels that clearing rays cross: the hot loop of occupancy integration (about 5
+// million voxel visits per 131k-point scan at 25 m clearing). Hand-written because a general DDA
+// (traverse_voxels) costs ~2.5 ns per visit, mostly in mispredicted branches choosing the axis to
+// step, and OctoMap's cost is what this is measured against. Here the DDA runs on integers:
+// crossing parameters in fixed point and voxel coordinates kept "dilated" in their bit positions of
+// the bitmap index, so that a step is a handful of branch-free integer operations, eight rays at a
+// time with AVX2 (scalar fallback: same arithmetic, same result, one ray at a time).
+#include <cstddef>
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include "slamvdb/core/types.hpp"
+#include "slamvdb/map/keys.hpp"
+
+namespace slamvdb {
+
+// A cube of 2^side_bits blocks per side, block-aligned, with one 8^3 brick of bits per block (8
+// words: one per z, bit (y & 7) * 8 + (x & 7)), bricks in (z, y, x) order. Voxel (x, y, z)
+// relative to `lo` has bit index (x & 7) | (y & 7) << 3 | (z & 7) << 6 | brick << 9 with brick =
+// (x >> 3) | (y >> 3) << b | (z >> 3) << 2b: each coordinate owns a fixed set of index bits.
+struct RayCube {
+  VoxelKey lo;        // first voxel, a block corner
+  int side_bits = 0;  // 1..6 (6: 512 voxels, a 16 MB bitmap)
+
+  // The smallest cube around `center` holding every voxel within `reach` voxels of it (nullopt-like
+  // side_bits 0 when more than 2^6 blocks per side would be needed).
+  static RayCube around(const VoxelKey& center, int reach);
+  int side_voxels() const { return kBlockSide << side_bits; }
+  std::size_t num_bricks() const { return std::size_t{1} << (3 * side_bits); }
+  // Words of a bitmap: the bricks and one more that finished lanes write to (see the .cpp).
+  std::size_t num_words() const { return (num_bricks() + 1) * 8; }
+  BlockKey block_of_brick(std::size_t brick) const {
+    const std::size_t m = (std::size_t{1} << side_bits) - 1;
+    return BlockKey((lo.x() >> kBlockBits) + static_cast<int>(brick & m),
+                    (lo.y() >> kBlockBits) + static_cast<int>((brick >> side_bits) & m),
+                    (lo.z() >> kBlockBits) + static_cast<int>(brick >> (2 * side_bits)));
+  }
+  bool contains(const VoxelKey& k) const {
+    const auto n = static_cast<unsigned>(side_voxels());
+    return static_cast<unsigned>(k.x() - lo.x()) < n && static_cast<unsigned>(k.y() - lo.y()) < n &&
+           static_cast<unsigned>(k.z() - lo.z()) < n;
+  }
+  // Bit index of a voxel inside the cube.
+  uint32_t bit_of(const VoxelKey& k) const;
+};
+
+// Sets, in `words` (cube.num_words(), not shared with another thread while this runs), the bit of
+// every voxel that the segment from `from` to each of `to` crosses, excluding the voxel of its end:
+// the voxels traverse_voxels(from, to) visits, except where a segment passes within about 1e-5 of a
+// voxel's edge (the crossing parameters are fixed point). `from` and every `to` are in cell units
+// and every segment lies inside the cube. The result does not depend on the CPU.
+void mark_segments(const RayCube& cube, const Vec3d& from, std::span<const Vec3d> to, uint64_t* words);
+
+// The same without AVX2 (tests compare the two).
+void mark_segments_scalar(const RayCube& cube, const Vec3d& from, std::span<const Vec3d> to, uint64_t* words);
+
+// Bitmaps for integrate_scan, handed back clear: allocating and zeroing 4 MB per thread per scan
+// cost more than the update pass, which clears what it reads. Shared by every grid (a pool per grid
+// would multiply with the submaps); a scan takes one per thread that joins it. A bitmap not marked
+// clear (a scan that threw) is dropped instead of handed back.
+class PooledBitmap {
+ public:
+  explicit PooledBitmap(std::size_t words);  // all zero
+  PooledBitmap(PooledBitmap&&) = default;
+  PooledBitmap& operator=(PooledBitmap&&) = delete;
+  ~PooledBitmap();
+  uint64_t* data() { return words_.data(); }
+  void set_clear() { clear_ = true; }  // every bit is 0 again
+
+ private:
+  std::vector<uint64_t> words_;
+  bool clear_ = false;
+};
+
+}  // namespace slamvdb
