@@ -24,7 +24,7 @@ struct FusionSetup {
     for (int i = 0; i < 3; ++i) map.integrate_scan(scan, Pose::Identity());
     std::mt19937 rng(1);
     std::normal_distribution<float> g;
-    for (float& v : features.data) v = g(rng);
+    for (float& v : features.values()) v = g(rng);
   }
   static MapParams make_params(EmbeddingPrecision precision) {
     MapParams p;

@@ -143,13 +143,11 @@ FusionStats ProjectiveFusion::fuse(VoxelMap& submap, const FeatureMap& features,
                                    const Pose& T_submap_camera, std::span<const PlacedVoxelMap> occluders,
                                    const Pose& T_world_submap) {
   const int dim = submap.semantics().dim();
-  if (features.dim != dim)
-    throw Error(fmt::format("feature map has {} channels but the map stores {}-d embeddings", features.dim, dim));
-  if (features.width != camera.width || features.height != camera.height)
-    throw Error(fmt::format("feature map is {}x{} but the camera model is {}x{}", features.width, features.height,
+  if (features.dim() != dim)
+    throw Error(fmt::format("feature map has {} channels but the map stores {}-d embeddings", features.dim(), dim));
+  if (features.width() != camera.width || features.height() != camera.height)
+    throw Error(fmt::format("feature map is {}x{} but the camera model is {}x{}", features.width(), features.height(),
                             camera.width, camera.height));
-  if (features.data.size() != static_cast<std::size_t>(dim) * features.width * features.height)
-    throw Error("feature map data size does not match its shape");
 
   const Association& a = associate(submap.occupancy(), camera, T_submap_camera, occluders, T_world_submap);
   FusionStats stats;
@@ -167,7 +165,7 @@ FusionStats ProjectiveFusion::fuse(VoxelMap& submap, const FeatureMap& features,
   for (std::size_t p = 0; p < a.owner.size(); ++p) {
     if (a.owner[p] < 0) continue;
     ++on_voxels;
-    const float n2 = kernels::squared_norm({features.data.data() + p * udim, EmbeddingPrecision::kFloat32}, udim);
+    const float n2 = kernels::squared_norm(features.view(p), udim);
     if (!std::isfinite(n2)) ++stats.pixels_nonfinite;
     else if (n2 == 0.0f) ++stats.pixels_zero;
     else pixel_valid_[p] = 1;
@@ -180,12 +178,13 @@ FusionStats ProjectiveFusion::fuse(VoxelMap& submap, const FeatureMap& features,
 
   accum_.assign(a.voxels.size() * udim, 0.0f);
   valid_count_.assign(a.voxels.size(), 0);
-  const float* f = features.data.data();
-  for (std::size_t p = 0; p < a.owner.size(); ++p, f += dim) {
+  // fp16 features are widened here, in registers (F16C where the CPU has it): the map is read in
+  // its own precision, half the bytes of fp32. Widening is exact, so the sums equal fp32 ones.
+  for (std::size_t p = 0; p < a.owner.size(); ++p) {
     if (!pixel_valid_[p]) continue;
     const int32_t o = a.owner[p];
     float* acc = accum_.data() + static_cast<std::size_t>(o) * udim;
-    for (int c = 0; c < dim; ++c) acc[c] += f[c];
+    kernels::add_scaled(acc, features.view(p), 1.0f, udim);
     ++valid_count_[o];
     ++stats.pixels_used;
   }
