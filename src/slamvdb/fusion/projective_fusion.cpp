@@ -159,34 +159,35 @@ FusionStats ProjectiveFusion::fuse(VoxelMap& submap, const FeatureMap& features,
   // A pixel whose feature vector is not finite (a network's fp16 overflow, a damaged file) or
   // all zero carries no observation: it is skipped and counted, so that one bad frame can never
   // turn a voxel's running mean into NaN for good.
+  //
+  // One pass over the feature map (its 25-50 MB are what bounds fusion): each pixel is checked and
+  // summed while its vector is in L1. fp16 features are widened in registers (F16C where the CPU
+  // has it): read in half the bytes, and summed exactly as their fp32 values would be.
   const auto udim = static_cast<std::size_t>(dim);
-  pixel_valid_.assign(a.owner.size(), 0);
+  accum_.assign(a.voxels.size() * udim, 0.0f);
+  valid_count_.assign(a.voxels.size(), 0);
   std::size_t on_voxels = 0;
   for (std::size_t p = 0; p < a.owner.size(); ++p) {
-    if (a.owner[p] < 0) continue;
+    const int32_t o = a.owner[p];
+    if (o < 0) continue;
     ++on_voxels;
-    const float n2 = kernels::squared_norm(features.view(p), udim);
-    if (!std::isfinite(n2)) ++stats.pixels_nonfinite;
-    else if (n2 == 0.0f) ++stats.pixels_zero;
-    else pixel_valid_[p] = 1;
+    const EmbeddingView f = features.view(p);
+    const float n2 = kernels::squared_norm_4way(f, udim);
+    if (!std::isfinite(n2)) {
+      ++stats.pixels_nonfinite;
+    } else if (n2 == 0.0f) {
+      ++stats.pixels_zero;
+    } else {
+      kernels::add(accum_.data() + static_cast<std::size_t>(o) * udim, f, udim);
+      ++valid_count_[o];
+      ++stats.pixels_used;
+    }
   }
   const std::size_t invalid = stats.pixels_nonfinite + stats.pixels_zero;
   if (on_voxels > 0 && static_cast<double>(invalid) > params_.max_invalid_fraction * static_cast<double>(on_voxels)) {
-    stats.frames_refused_invalid = 1;
+    stats.frames_refused_invalid = 1;  // the sums are dropped: nothing of the frame is fused
+    stats.pixels_used = 0;
     return stats;
-  }
-
-  accum_.assign(a.voxels.size() * udim, 0.0f);
-  valid_count_.assign(a.voxels.size(), 0);
-  // fp16 features are widened here, in registers (F16C where the CPU has it): the map is read in
-  // its own precision, half the bytes of fp32. Widening is exact, so the sums equal fp32 ones.
-  for (std::size_t p = 0; p < a.owner.size(); ++p) {
-    if (!pixel_valid_[p]) continue;
-    const int32_t o = a.owner[p];
-    float* acc = accum_.data() + static_cast<std::size_t>(o) * udim;
-    kernels::add_scaled(acc, features.view(p), 1.0f, udim);
-    ++valid_count_[o];
-    ++stats.pixels_used;
   }
   for (std::size_t v = 0; v < a.voxels.size(); ++v) {
     if (valid_count_[v] == 0) continue;
