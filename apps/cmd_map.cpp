@@ -31,6 +31,7 @@ struct Options {
   std::string dataset, output;
   std::string features = "simulated";
   std::string precision = "fp16";
+  std::string sim_feature_precision = "fp32";
   std::string feature_size = "192x128";
   std::string distortion;
   std::string model;
@@ -85,6 +86,7 @@ std::unique_ptr<FeatureSource> make_feature_source(const Options& opt, const Seq
     sim.width = std::stoi(m[1]);
     sim.height = std::stoi(m[2]);
     sim.dim = opt.pipeline.map.semantic.dim;
+    sim.output_precision = precision_from_string(opt.sim_feature_precision);
     spdlog::warn("features are SIMULATED from the 2D label images (no network): {}", simulated_model_id(sim));
     return std::make_unique<EncoderFeatureSource>(std::make_unique<SimulatedDenseEncoder>(sim),
                                                   EncoderFeatureSource::Input::kLabels);
@@ -259,6 +261,12 @@ void add(CLI::App& root) {
   cmd->add_option("--distortion", opt->distortion, "Camera plumb_bob coefficients 'k1 k2 p1 p2 k3' (overrides the dataset)");
   cmd->add_option("--feature-size", opt->feature_size, "Simulated feature map size WIDTHxHEIGHT")->capture_default_str();
   cmd->add_option("--sim-seed", opt->sim.seed, "Seed of the simulated encoder")->capture_default_str();
+  cmd->add_option("--sim-feature-precision", opt->sim_feature_precision,
+                  "Precision of the SIMULATED feature maps handed to fusion: fp32, or fp16 as a network run in half "
+                  "precision gives them (the fp32 values rounded; fusion reads half the bytes). Networks and .npy "
+                  "files hand over their own precision")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"fp32", "fp16"}));
   cmd->add_option("--sim-confusion", opt->sim.confusion_rate, "Simulated per-view confusion rate")
       ->capture_default_str()
       ->check(finite_range(0, 1));

@@ -84,14 +84,16 @@ cv::Vec3b class_colour(const std::string& name, std::size_t index) {
 
 // Index of the class whose embedding has the largest dot product with each pixel's.
 cv::Mat best_class(const FeatureMap& features, const std::vector<std::vector<float>>& classes) {
-  cv::Mat labels(features.height, features.width, CV_8UC1);
-  for (int y = 0; y < features.height; ++y)
-    for (int x = 0; x < features.width; ++x) {
-      const float* f = features.pixel(x, y);
+  cv::Mat labels(features.height(), features.width(), CV_8UC1);
+  std::vector<float> pixel(static_cast<std::size_t>(features.dim()));
+  for (int y = 0; y < features.height(); ++y)
+    for (int x = 0; x < features.width(); ++x) {
+      features.decode_pixel(x, y, pixel.data());  // fp32 or a half-precision network's fp16
+      const float* f = pixel.data();
       float best_score = -std::numeric_limits<float>::infinity();
       for (std::size_t k = 0; k < classes.size(); ++k) {
         float score = 0.0f;
-        for (int c = 0; c < features.dim; ++c) score += f[c] * classes[k][c];
+        for (int c = 0; c < features.dim(); ++c) score += f[c] * classes[k][c];
         if (score > best_score) {
           best_score = score;
           labels.at<uint8_t>(y, x) = static_cast<uint8_t>(k);
@@ -151,7 +153,7 @@ void run(const Options& opt) {
   write_file_atomically(opt.out_dir / "legend.txt", legend);
   // Model ids come from manifests, class names from the user: printed with control characters escaped.
   std::printf("%s: %d x %d x %d features (%s), best of %zu classes (%s) -> %s\n", escape_control(frame.source).c_str(),
-              features.dim, features.height, features.width, escape_control(enc.dense->model_id()).c_str(),
+              features.dim(), features.height(), features.width(), escape_control(enc.dense->model_id()).c_str(),
               names.size(), escape_control(enc.text->model_id()).c_str(), escape_control(opt.out_dir.string()).c_str());
   std::fputs(escape_control_keep_lines(legend).c_str(), stdout);
 }

@@ -68,8 +68,8 @@ void BM_DenseEncoderViTB16(benchmark::State& state) {
   FeatureMap features;
   for (auto _ : state) benchmark::DoNotOptimize(features = encoder.encode(frame));
   state.counters["fps"] = benchmark::Counter(static_cast<double>(state.iterations()), benchmark::Counter::kIsRate);
-  state.SetLabel(std::to_string(features.dim) + " x " + std::to_string(features.height) + " x " +
-                 std::to_string(features.width) + " from " + std::to_string(frame.rgb.cols) + " x " +
+  state.SetLabel(std::to_string(features.dim()) + " x " + std::to_string(features.height()) + " x " +
+                 std::to_string(features.width()) + " from " + std::to_string(frame.rgb.cols) + " x " +
                  std::to_string(frame.rgb.rows));
 }
 BENCHMARK(BM_DenseEncoderViTB16)->Arg(2)->Arg(1)->Unit(benchmark::kMillisecond)->UseRealTime()->MinTime(5.0);

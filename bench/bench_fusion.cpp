@@ -2,6 +2,8 @@
 // real RELLIS-3D scan, seen through the real RELLIS-3D camera calibration.
 #include <benchmark/benchmark.h>
 
+#include <fmt/format.h>
+
 #include <random>
 
 #include "bench_data.hpp"
@@ -15,6 +17,7 @@ struct FusionSetup {
   CameraModel camera = bench::rellis_camera().scaled(192, 128);
   Pose T_submap_camera = bench::rellis_T_lidar_camera();
   FeatureMap features{512, 128, 192};
+  FeatureMap half_features;  // the same values rounded to fp16, as a half-precision network gives them
 
   // drive_m > 0: the scan is also inserted every 5 m along a drive of that length ending at the
   // camera, so the map is large and the camera sees only its end (fusion must not scale with it).
@@ -24,7 +27,8 @@ struct FusionSetup {
     for (int i = 0; i < 3; ++i) map.integrate_scan(scan, Pose::Identity());
     std::mt19937 rng(1);
     std::normal_distribution<float> g;
-    for (float& v : features.data) v = g(rng);
+    for (float& v : features.values()) v = g(rng);
+    half_features = features.converted(EmbeddingPrecision::kFloat16);
   }
   static MapParams make_params(EmbeddingPrecision precision) {
     MapParams p;
@@ -33,17 +37,30 @@ struct FusionSetup {
   }
 };
 
+// Arguments: the map's embedding storage, then the feature map's precision (0 fp32, 1 fp16). fp16
+// features are read as they are and widened in registers: half the bytes of the 50 MB fp32 map.
 void BM_FuseFeatureMap(benchmark::State& state) {
-  FusionSetup s(static_cast<EmbeddingPrecision>(state.range(0)));
+  const auto storage = static_cast<EmbeddingPrecision>(state.range(0));
+  const auto feature_precision = static_cast<EmbeddingPrecision>(state.range(1));
+  FusionSetup s(storage);
+  const FeatureMap& features = feature_precision == EmbeddingPrecision::kFloat16 ? s.half_features : s.features;
   ProjectiveFusion fusion;
   FusionStats stats;
-  for (auto _ : state) stats = fusion.fuse(s.map, s.features, s.camera, s.T_submap_camera);
+  for (auto _ : state) stats = fusion.fuse(s.map, features, s.camera, s.T_submap_camera);
   state.counters["voxels"] = static_cast<double>(stats.fused_voxels);
   state.counters["candidates"] = static_cast<double>(stats.candidates);
   state.counters["pixels"] = static_cast<double>(stats.pixels_used);
-  state.SetLabel(to_string(static_cast<EmbeddingPrecision>(state.range(0))).data());
+  state.counters["feature_MB"] = static_cast<double>(features.bytes()) / 1e6;
+  state.SetLabel(fmt::format("map {}, features {}", to_string(storage), to_string(feature_precision)));
 }
-BENCHMARK(BM_FuseFeatureMap)->Arg(1)->Arg(0)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_FuseFeatureMap)
+    ->ArgNames({"map_fp16", "features_fp16"})
+    ->Args({1, 0})
+    ->Args({1, 1})
+    ->Args({0, 0})
+    ->Args({0, 1})
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
 
 void BM_FuseFeatureMapLargeMap(benchmark::State& state) {
   FusionSetup s(EmbeddingPrecision::kFloat16, 500.0);

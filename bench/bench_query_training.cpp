@@ -16,7 +16,7 @@ void BM_SamplePixels(benchmark::State& state) {
   FeatureMap map(512, 128, 192);
   std::mt19937 rng(1);
   std::normal_distribution<float> g;
-  for (float& v : map.data) v = g(rng);
+  for (float& v : map.values()) v = g(rng);
   std::vector<int> targets(128 * 192);
   for (std::size_t i = 0; i < targets.size(); ++i) targets[i] = static_cast<int>(i / 192 / 22);  // 6 bands
   const auto sampling = state.range(0) ? PixelSampling::kClassBalanced : PixelSampling::kUniform;

@@ -24,7 +24,7 @@ void BM_SimulatedDenseEncoder(benchmark::State& state) {
     frame.stamp += 0.2;
     if (reuse) encoder.encode_into(frame, features);
     else features = encoder.encode(frame);
-    benchmark::DoNotOptimize(features.data.data());
+    benchmark::DoNotOptimize(features.values().data());
   }
   state.SetLabel(reuse ? "reused buffer" : "fresh feature map per frame");
 }

@@ -6,7 +6,7 @@
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   try {
     const slamvdb::FeatureMap map = slamvdb::read_feature_npy(slamvdb::fuzz::write_input(data, size, "features.npy"));
-    if (map.data.size() != static_cast<std::size_t>(map.dim) * map.height * map.width) __builtin_trap();
+    if (map.size() != static_cast<std::size_t>(map.dim()) * map.height() * map.width()) __builtin_trap();
   } catch (const slamvdb::Error&) {
   }
   return 0;

@@ -136,9 +136,9 @@ py::dict fuse_features(SemanticMap& map, double stamp, const F32& features, cons
   if (features.ndim() != 3) throw Error("features are an H x W x C array");
   FeatureMap f(static_cast<int>(features.shape(2)), static_cast<int>(features.shape(0)),
                static_cast<int>(features.shape(1)));
-  std::copy_n(features.data(), f.data.size(), f.data.begin());
+  std::copy_n(features.data(), f.size(), f.values().begin());
   CameraModel cam;
-  cam.width = f.width, cam.height = f.height;
+  cam.width = f.width(), cam.height = f.height();
   cam.fx = camera["fx"].cast<double>(), cam.fy = camera["fy"].cast<double>();
   cam.cx = camera["cx"].cast<double>(), cam.cy = camera["cy"].cast<double>();
   const Pose T = pose_from(T_world_camera);

@@ -78,16 +78,21 @@ TEST(CliConventions, ConfigFileSetsOptionsAndTheCommandLineWins) {
   // A map records the options it was made with, as a config file `map --config` reads back.
   const std::string map = shell_quote((tmp.path / "m.svdb").string());
   const auto mapped = run_command(kCli + " map " + seq + " -o " + map + " --config " +
-                                  write("map.yaml", "voxel-size: 0.5\nfeature-size: 24x16\ndim: 8\n") + " 2>&1");
+                                  write("map.yaml", "voxel-size: 0.5\nfeature-size: 24x16\ndim: 8\n"
+                                                    "sim-feature-precision: fp16\n") +
+                                  " 2>&1");
   ASSERT_EQ(mapped.exit_code, 0) << mapped.output;
   const auto info = run_command(kCli + " info " + map + " --json");
   const auto config = nlohmann::json::parse(info.output)["config"].get<std::string>();
   EXPECT_NE(config.find("voxel-size: 0.5"), std::string::npos) << config;
+  EXPECT_NE(config.find("sim-feature-precision: fp16"), std::string::npos) << config;
   EXPECT_NE(config.find("submap-length: 50"), std::string::npos) << config;  // defaults too
   std::ofstream(tmp.path / "again.yaml") << config;
   const auto again = run_command(kCli + " map " + seq + " --config " + shell_quote((tmp.path / "again.yaml").string()) +
                                  " -o " + shell_quote((tmp.path / "m2.svdb").string()) + " 2>&1");
   EXPECT_EQ(again.exit_code, 0) << again.output;
+  const auto fp8 = run_command(kCli + " map " + seq + " -o " + map + " --sim-feature-precision fp8 2>&1");
+  EXPECT_EQ(fp8.exit_code, 2) << fp8.output;  // a usage error, before any work
 }
 
 }  // namespace

@@ -123,6 +123,54 @@ SLAMVDB_AVX2 void add_scaled_f16_avx2(float* acc, const uint16_t* v, float w, st
   for (; i < n; ++i) acc[i] += w * _cvtsh_ss(v[i]);
 }
 
+SLAMVDB_AVX2 void add_f16_avx2(float* acc, const uint16_t* v, std::size_t n) {
+  std::size_t i = 0;
+  for (; i + 8 <= n; i += 8) _mm256_storeu_ps(acc + i, _mm256_add_ps(_mm256_loadu_ps(acc + i), load_half8(v + i)));
+  for (; i < n; ++i) acc[i] += _cvtsh_ss(v[i]);
+}
+SLAMVDB_AVX2 void add_f32_avx2(float* acc, const float* v, std::size_t n) {
+  std::size_t i = 0;
+  for (; i + 8 <= n; i += 8)
+    _mm256_storeu_ps(acc + i, _mm256_add_ps(_mm256_loadu_ps(acc + i), _mm256_loadu_ps(v + i)));
+  for (; i < n; ++i) acc[i] += v[i];
+}
+
+// Four chains of 8 lanes over blocks of 32 values, then 8 at a time into the first, then a scalar
+// tail: the same order for both precisions.
+SLAMVDB_AVX2 inline __m256 load8(const float* p) { return _mm256_loadu_ps(p); }
+SLAMVDB_AVX2 inline __m256 load8(const uint16_t* p) { return load_half8(p); }
+inline float widen(float x) { return x; }
+inline float widen(uint16_t h) { return slamvdb::half_to_float(h); }
+template <typename T>
+SLAMVDB_AVX2 float squared_norm_4way_avx2(const T* v, std::size_t n) {
+  __m256 a0 = _mm256_setzero_ps(), a1 = _mm256_setzero_ps(), a2 = _mm256_setzero_ps(), a3 = _mm256_setzero_ps();
+  std::size_t i = 0;
+  for (; i + 32 <= n; i += 32) {
+    const __m256 x0 = load8(v + i), x1 = load8(v + i + 8), x2 = load8(v + i + 16), x3 = load8(v + i + 24);
+    a0 = _mm256_fmadd_ps(x0, x0, a0);
+    a1 = _mm256_fmadd_ps(x1, x1, a1);
+    a2 = _mm256_fmadd_ps(x2, x2, a2);
+    a3 = _mm256_fmadd_ps(x3, x3, a3);
+  }
+  for (; i + 8 <= n; i += 8) {
+    const __m256 x = load8(v + i);
+    a0 = _mm256_fmadd_ps(x, x, a0);
+  }
+  float s = hsum(_mm256_add_ps(_mm256_add_ps(a0, a1), _mm256_add_ps(a2, a3)));
+  for (; i < n; ++i) s += widen(v[i]) * widen(v[i]);
+  return s;
+}
+template <typename T>
+float squared_norm_4way_scalar(const T* v, std::size_t n) {
+  float a[4] = {0, 0, 0, 0};
+  std::size_t i = 0;
+  for (; i + 4 <= n; i += 4)
+    for (int k = 0; k < 4; ++k) a[k] += widen(v[i + k]) * widen(v[i + k]);
+  float s = (a[0] + a[1]) + (a[2] + a[3]);
+  for (; i < n; ++i) s += widen(v[i]) * widen(v[i]);
+  return s;
+}
+
 SLAMVDB_AVX2 void dot_norm_f16_avx2(const uint16_t* v, const float* q, std::size_t n, float* dot, float* norm2) {
   __m256 d0 = _mm256_setzero_ps(), d1 = _mm256_setzero_ps(), s0 = _mm256_setzero_ps(), s1 = _mm256_setzero_ps();
   std::size_t i = 0;
@@ -211,6 +259,31 @@ void add_scaled(float* acc, EmbeddingView v, float w, std::size_t n) {
     return dispatch().add_scaled_f16(acc, static_cast<const uint16_t*>(v.data), w, n);
   const auto* x = static_cast<const float*>(v.data);
   for (std::size_t i = 0; i < n; ++i) acc[i] += w * x[i];
+}
+
+void add(float* acc, EmbeddingView v, std::size_t n) {
+  const bool half = v.precision == EmbeddingPrecision::kFloat16;
+  if (dispatch().avx2) {
+    if (half) return add_f16_avx2(acc, static_cast<const uint16_t*>(v.data), n);
+    return add_f32_avx2(acc, static_cast<const float*>(v.data), n);
+  }
+  if (half) {
+    const auto* h = static_cast<const uint16_t*>(v.data);
+    for (std::size_t i = 0; i < n; ++i) acc[i] += slamvdb::half_to_float(h[i]);
+    return;
+  }
+  const auto* x = static_cast<const float*>(v.data);
+  for (std::size_t i = 0; i < n; ++i) acc[i] += x[i];
+}
+
+float squared_norm_4way(EmbeddingView v, std::size_t n) {
+  const bool avx2 = dispatch().avx2;
+  if (v.precision == EmbeddingPrecision::kFloat16) {
+    const auto* h = static_cast<const uint16_t*>(v.data);
+    return avx2 ? squared_norm_4way_avx2(h, n) : squared_norm_4way_scalar(h, n);
+  }
+  const auto* x = static_cast<const float*>(v.data);
+  return avx2 ? squared_norm_4way_avx2(x, n) : squared_norm_4way_scalar(x, n);
 }
 
 float dot(EmbeddingView v, const float* q, std::size_t n) {

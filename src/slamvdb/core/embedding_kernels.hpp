@@ -44,6 +44,9 @@ void running_mean(uint16_t* v, const float* x, float w, std::size_t n);
 
 // acc <- acc + w * v (v decoded from its precision): count-weighted sums for index reads and merges.
 void add_scaled(float* acc, EmbeddingView v, float w, std::size_t n);
+// acc <- acc + v (v decoded from its precision): fusion's per-voxel sums of feature pixels. fp16
+// widens exactly, so an fp16 v gives the sums of its fp32 values, bit for bit.
+void add(float* acc, EmbeddingView v, std::size_t n);
 
 // Dot product of a stored embedding with an fp32 vector, and the stored embedding's squared norm.
 float dot(EmbeddingView v, const float* q, std::size_t n);
@@ -53,6 +56,11 @@ void dot_and_squared_norm(EmbeddingView v, const float* q, std::size_t n, float*
 
 // The same for a combined view (two fp16 embeddings on the fast path).
 void dot_and_squared_norm(const CombinedView& v, const float* q, std::size_t n, float* dot, float* norm2);
+
+// The squared norm summed in four independent chains (not the order of squared_norm(): the last
+// bits differ): for tests of finiteness and zero, where a single chain's FMA latency, not memory,
+// would bound fusion. fp16 and fp32 inputs with the same values give the same result.
+float squared_norm_4way(EmbeddingView v, std::size_t n);
 
 // True when all n values are finite.
 bool all_finite(const float* x, std::size_t n);

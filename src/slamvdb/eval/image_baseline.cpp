@@ -23,8 +23,8 @@ ImageBaselineResult evaluate_image_baseline(std::span<const ImageRecord> images,
     } else {
       const FeatureMap map = features.features_for(image);
       const std::string where = image.labels.filename().string();
-      check_compatible(queries, map.dim, features.model_id(), ModelIdCheck::kIgnore);  // the dimension
-      const std::vector<uint16_t> labels = read_labels_at(image.labels, map.width, map.height);
+      check_compatible(queries, map.dim(), features.model_id(), ModelIdCheck::kIgnore);  // the dimension
+      const std::vector<uint16_t> labels = read_labels_at(image.labels, map.width(), map.height());
       const PixelCounts counts = score_feature_map(map, labels, truth, classifier, query_to_class, result.matrix, where);
       result.pixels += counts.pixels;
       result.unlabelled_pixels += counts.unlabelled;

@@ -84,14 +84,14 @@ TEST_F(ImageBaselineTest, ScoresEveryLabelledPixelWithTheMapsRule) {
   auto features3 = source();
   const ImageBaselineResult one = evaluate_image_baseline(std::span(seq.images).first(1), features3, q, o);
   const FeatureMap map = source().features_for(seq.images[0]);
-  const auto labels = read_labels_at(seq.images[0].labels, map.width, map.height);
+  const auto labels = read_labels_at(seq.images[0].labels, map.width(), map.height());
   const QueryClassifier classifier(q);
   uint64_t correct = 0, scored = 0;
-  for (int i = 0; i < map.width * map.height; ++i) {
+  for (int i = 0; i < map.width() * map.height(); ++i) {
     const int truth = o.ground_truth()(labels[i]);
     if (o.is_void(truth)) continue;
     ++scored;
-    correct += classifier.classify(std::span(map.data).subspan(std::size_t(i) * map.dim, map.dim))[0].class_index == truth;
+    correct += classifier.classify(map.values().subspan(std::size_t(i) * map.dim(), map.dim()))[0].class_index == truth;
   }
   EXPECT_EQ(one.matrix.scored(), scored);
   EXPECT_DOUBLE_EQ(*one.matrix.accuracy(), double(correct) / double(scored));

@@ -27,15 +27,19 @@ void score_embeddings(const float* embeddings, std::size_t rows, std::span<const
   }
 }
 
-PixelCounts score_feature_map(const FeatureMap& features, std::span<const uint16_t> labels,
+PixelCounts score_feature_map(const FeatureMap& map, std::span<const uint16_t> labels,
                               const LabelMapping& ground_truth, const QueryClassifier& classifier,
                               std::span<const int> query_to_class, ConfusionMatrix& matrix, std::string_view where) {
-  const std::size_t pixels = static_cast<std::size_t>(features.width) * features.height;
+  // The classifier reads fp32 rows: an fp16 map is widened once (exactly).
+  const bool half = map.precision() == EmbeddingPrecision::kFloat16;
+  const FeatureMap widened = half ? map.converted(EmbeddingPrecision::kFloat32) : FeatureMap();
+  const FeatureMap& features = half ? widened : map;
+  const std::size_t pixels = features.pixels();
   if (labels.size() != pixels)
-    throw Error(fmt::format("{}: {} labels for a {} x {} feature map", where, labels.size(), features.width,
-                            features.height));
-  if (features.dim != classifier.dim())
-    throw Error(fmt::format("{}: {}-d features but {}-d queries", where, features.dim, classifier.dim()));
+    throw Error(fmt::format("{}: {} labels for a {} x {} feature map", where, labels.size(), features.width(),
+                            features.height()));
+  if (features.dim() != classifier.dim())
+    throw Error(fmt::format("{}: {}-d features but {}-d queries", where, features.dim(), classifier.dim()));
   std::vector<int> truth(pixels);
   PixelCounts counts;
   for (std::size_t i = 0; i < pixels; ++i) {
@@ -43,11 +47,11 @@ PixelCounts score_feature_map(const FeatureMap& features, std::span<const uint16
     if (truth[i] == LabelMapping::kUnknown)
       throw Error(fmt::format("{}: label id {} at pixel ({}, {}) of the feature-size label image is not in the "
                               "ontology",
-                              where, labels[i], i % features.width, i / features.width));
+                              where, labels[i], i % features.width(), i / features.width()));
     if (truth[i] == LabelMapping::kIgnore) ++counts.unlabelled;
     else ++counts.pixels;
   }
-  score_embeddings(features.data.data(), pixels, truth, classifier, query_to_class, matrix);
+  score_embeddings(features.values().data(), pixels, truth, classifier, query_to_class, matrix);
   return counts;
 }
 

@@ -143,13 +143,11 @@ FusionStats ProjectiveFusion::fuse(VoxelMap& submap, const FeatureMap& features,
                                    const Pose& T_submap_camera, std::span<const PlacedVoxelMap> occluders,
                                    const Pose& T_world_submap) {
   const int dim = submap.semantics().dim();
-  if (features.dim != dim)
-    throw Error(fmt::format("feature map has {} channels but the map stores {}-d embeddings", features.dim, dim));
-  if (features.width != camera.width || features.height != camera.height)
-    throw Error(fmt::format("feature map is {}x{} but the camera model is {}x{}", features.width, features.height,
+  if (features.dim() != dim)
+    throw Error(fmt::format("feature map has {} channels but the map stores {}-d embeddings", features.dim(), dim));
+  if (features.width() != camera.width || features.height() != camera.height)
+    throw Error(fmt::format("feature map is {}x{} but the camera model is {}x{}", features.width(), features.height(),
                             camera.width, camera.height));
-  if (features.data.size() != static_cast<std::size_t>(dim) * features.width * features.height)
-    throw Error("feature map data size does not match its shape");
 
   const Association& a = associate(submap.occupancy(), camera, T_submap_camera, occluders, T_world_submap);
   FusionStats stats;
@@ -161,33 +159,35 @@ FusionStats ProjectiveFusion::fuse(VoxelMap& submap, const FeatureMap& features,
   // A pixel whose feature vector is not finite (a network's fp16 overflow, a damaged file) or
   // all zero carries no observation: it is skipped and counted, so that one bad frame can never
   // turn a voxel's running mean into NaN for good.
+  //
+  // One pass over the feature map (its 25-50 MB are what bounds fusion): each pixel is checked and
+  // summed while its vector is in L1. fp16 features are widened in registers (F16C where the CPU
+  // has it): read in half the bytes, and summed exactly as their fp32 values would be.
   const auto udim = static_cast<std::size_t>(dim);
-  pixel_valid_.assign(a.owner.size(), 0);
+  accum_.assign(a.voxels.size() * udim, 0.0f);
+  valid_count_.assign(a.voxels.size(), 0);
   std::size_t on_voxels = 0;
   for (std::size_t p = 0; p < a.owner.size(); ++p) {
-    if (a.owner[p] < 0) continue;
+    const int32_t o = a.owner[p];
+    if (o < 0) continue;
     ++on_voxels;
-    const float n2 = kernels::squared_norm({features.data.data() + p * udim, EmbeddingPrecision::kFloat32}, udim);
-    if (!std::isfinite(n2)) ++stats.pixels_nonfinite;
-    else if (n2 == 0.0f) ++stats.pixels_zero;
-    else pixel_valid_[p] = 1;
+    const EmbeddingView f = features.view(p);
+    const float n2 = kernels::squared_norm_4way(f, udim);
+    if (!std::isfinite(n2)) {
+      ++stats.pixels_nonfinite;
+    } else if (n2 == 0.0f) {
+      ++stats.pixels_zero;
+    } else {
+      kernels::add(accum_.data() + static_cast<std::size_t>(o) * udim, f, udim);
+      ++valid_count_[o];
+      ++stats.pixels_used;
+    }
   }
   const std::size_t invalid = stats.pixels_nonfinite + stats.pixels_zero;
   if (on_voxels > 0 && static_cast<double>(invalid) > params_.max_invalid_fraction * static_cast<double>(on_voxels)) {
-    stats.frames_refused_invalid = 1;
+    stats.frames_refused_invalid = 1;  // the sums are dropped: nothing of the frame is fused
+    stats.pixels_used = 0;
     return stats;
-  }
-
-  accum_.assign(a.voxels.size() * udim, 0.0f);
-  valid_count_.assign(a.voxels.size(), 0);
-  const float* f = features.data.data();
-  for (std::size_t p = 0; p < a.owner.size(); ++p, f += dim) {
-    if (!pixel_valid_[p]) continue;
-    const int32_t o = a.owner[p];
-    float* acc = accum_.data() + static_cast<std::size_t>(o) * udim;
-    for (int c = 0; c < dim; ++c) acc[c] += f[c];
-    ++valid_count_[o];
-    ++stats.pixels_used;
   }
   for (std::size_t v = 0; v < a.voxels.size(); ++v) {
     if (valid_count_[v] == 0) continue;

@@ -70,7 +70,6 @@ class ProjectiveFusion {
   std::vector<VoxelKey> candidate_keys_;
   std::vector<float> accum_;  // voxels x dim
   std::vector<uint32_t> valid_count_;
-  std::vector<uint8_t> pixel_valid_;
 };
 
 }  // namespace slamvdb

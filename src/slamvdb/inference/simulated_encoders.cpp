@@ -187,16 +187,17 @@ void SimulatedDenseEncoder::encode_into(const ImageFrame& frame, FeatureMap& out
 
   // One pass per pixel: the (mostly single) weighted prototype plus a bank row, cyclically shifted
   // and signed per pixel (a shifted row of iid Gaussians is again one), then normalised.
-  out.dim = D, out.height = H, out.width = W;
-  out.data.resize(static_cast<std::size_t>(D) * H * W);  // every value is written below
+  const bool half = config_.output_precision == EmbeddingPrecision::kFloat16;
+  out.reset(D, H, W, config_.output_precision);  // every value is written below
   tbb::parallel_for(0, H, [&](int y) {
+    std::vector<float> row_scratch(half ? static_cast<std::size_t>(D) : 0);  // fp32 pixel before rounding
     for (int x = 0; x < W; ++x) {
       const std::size_t i = static_cast<std::size_t>(y) * W + x;
       const uint64_t h = mix(view, 0x5EED0000000ull + i);
       const float* noise = noise_bank_.data() + (h % kNoiseBankSize) * D;
       const int shift = static_cast<int>((h >> 16) % D);
       const float sigma = (h >> 63) ? -config_.noise_sigma : config_.noise_sigma;
-      Eigen::Map<Eigen::VectorXf> f(out.pixel(x, y), D);
+      Eigen::Map<Eigen::VectorXf> f(half ? row_scratch.data() : out.pixel(x, y), D);
       f.head(D - shift) = sigma * Eigen::Map<const Eigen::VectorXf>(noise + shift, D - shift);
       f.tail(shift) = sigma * Eigen::Map<const Eigen::VectorXf>(noise, shift);
       for (std::size_t r = 0; r < rows.size(); ++r) {
@@ -205,6 +206,7 @@ void SimulatedDenseEncoder::encode_into(const ImageFrame& frame, FeatureMap& out
       }
       const float norm = f.norm();
       if (norm > 0.f) f *= 1.f / norm;
+      if (half) kernels::float_to_half(f.data(), out.half_pixel(x, y), static_cast<std::size_t>(D));
     }
   });
 }
@@ -279,10 +281,13 @@ std::vector<float> SimulatedTextEncoder::encode(std::string_view text) {
 
 std::vector<float> SimulatedImageEncoder::encode(const ImageFrame& frame) {
   const FeatureMap features = dense_.encode(frame);
-  Eigen::VectorXd sum = Eigen::VectorXd::Zero(features.dim);
-  for (int y = 0; y < features.height; ++y)
-    for (int x = 0; x < features.width; ++x)
-      sum += Eigen::Map<const Eigen::VectorXf>(features.pixel(x, y), features.dim).cast<double>();
+  Eigen::VectorXd sum = Eigen::VectorXd::Zero(features.dim());
+  Eigen::VectorXf pixel(features.dim());
+  for (int y = 0; y < features.height(); ++y)
+    for (int x = 0; x < features.width(); ++x) {
+      features.decode_pixel(x, y, pixel.data());
+      sum += pixel.cast<double>();
+    }
   const Eigen::VectorXf mean = sum.normalized().cast<float>();
   return std::vector<float>(mean.data(), mean.data() + mean.size());
 }

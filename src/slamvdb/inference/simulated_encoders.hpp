@@ -30,6 +30,10 @@ struct SimulatedEncoderConfig {
   // CLIP text embedding of one class resembles image features of others, so that some queries
   // "drown out" the rest (paper section 6.2.5, Figure 6.3). Does not change the image space.
   float text_gap = 0.f;
+  // Dense encoder only: the precision of the feature maps it hands over. kFloat16 rounds each value
+  // of the fp32 features to fp16, as a network run in half precision delivers them (the values are
+  // the fp32 ones rounded, nothing else changes: the model id stays the same).
+  EmbeddingPrecision output_precision = EmbeddingPrecision::kFloat32;
 };
 
 // Throws Error naming the first parameter out of range.

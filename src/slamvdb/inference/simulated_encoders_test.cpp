@@ -38,7 +38,7 @@ ImageFrame scene(double stamp) {
 
 // Per pixel, the class whose prototype is closest.
 std::vector<int> argmax_classes(const FeatureMap& f, const PrototypeMatrix& prototypes) {
-  const Eigen::Map<const RowMatrix> features(f.data.data(), static_cast<Eigen::Index>(f.height) * f.width, f.dim);
+  const Eigen::Map<const RowMatrix> features(f.values().data(), static_cast<Eigen::Index>(f.pixels()), f.dim());
   const RowMatrix scores = features * prototypes.transpose();
   std::vector<int> best(scores.rows());
   for (Eigen::Index i = 0; i < scores.rows(); ++i) scores.row(i).maxCoeff(&best[i]);
@@ -83,16 +83,16 @@ TEST(SimulatedEncoders, SingleViewIsMostlyRightButImperfectAndViewsAverageOut) {
   constexpr int kViews = 20;
   for (int v = 0; v < kViews; ++v) {
     const FeatureMap f = encoder.encode(scene(100.0 + 0.1 * v));
-    ASSERT_EQ(f.dim, 512);
-    ASSERT_EQ(f.height, 128);
-    ASSERT_EQ(f.width, 192);
+    ASSERT_EQ(f.dim(), 512);
+    ASSERT_EQ(f.height(), 128);
+    ASSERT_EQ(f.width(), 192);
     if (v == 0) {
       single = agreement(argmax_classes(f, prototypes), labels, config);
-      for (int y = 0; y < f.height; y += 17)
-        for (int x = 0; x < f.width; x += 13)
-          EXPECT_NEAR(Eigen::Map<const Eigen::VectorXf>(f.pixel(x, y), f.dim).norm(), 1.f, 1e-4f);
+      for (int y = 0; y < f.height(); y += 17)
+        for (int x = 0; x < f.width(); x += 13)
+          EXPECT_NEAR(Eigen::Map<const Eigen::VectorXf>(f.pixel(x, y), f.dim()).norm(), 1.f, 1e-4f);
     }
-    for (std::size_t i = 0; i < sum.data.size(); ++i) sum.data[i] += f.data[i];
+    for (std::size_t i = 0; i < sum.size(); ++i) sum.values()[i] += f.values()[i];
   }
   const double averaged = agreement(argmax_classes(sum, prototypes), labels, config);
   EXPECT_GT(single, 0.70);
@@ -108,11 +108,29 @@ TEST(SimulatedEncoders, DeterministicPerSeedAndStamp) {
   config.width = 64;
   SimulatedDenseEncoder a(config), b(config);
   const FeatureMap f1 = a.encode(scene(5.0)), f2 = b.encode(scene(5.0)), f3 = a.encode(scene(5.1));
-  EXPECT_EQ(f1.data, f2.data);
-  EXPECT_NE(f1.data, f3.data);
+  EXPECT_EQ(f1, f2);
+  EXPECT_NE(f1, f3);
   config.seed = 2;
-  EXPECT_NE(SimulatedDenseEncoder(config).encode(scene(5.0)).data, f1.data);
+  EXPECT_NE(SimulatedDenseEncoder(config).encode(scene(5.0)), f1);
   EXPECT_NE(SimulatedDenseEncoder(config).model_id(), a.model_id());
+}
+
+// SIMULATED half-precision output: the fp32 features rounded to fp16, nothing else; the model id
+// stays (the same embedding space), and a reused fp32 buffer switches precision.
+TEST(SimulatedEncoders, Fp16OutputIsTheFp32OutputRounded) {
+  SimulatedEncoderConfig config;
+  config.dim = 37;
+  config.height = 24;
+  config.width = 32;
+  SimulatedDenseEncoder fp32(config);
+  config.output_precision = EmbeddingPrecision::kFloat16;
+  SimulatedDenseEncoder fp16(config);
+  EXPECT_EQ(fp16.model_id(), fp32.model_id());
+  const FeatureMap wide = fp32.encode(scene(5.0));
+  FeatureMap half = fp32.encode(scene(4.0));  // an fp32 buffer to reuse
+  fp16.encode_into(scene(5.0), half);
+  EXPECT_EQ(half.precision(), EmbeddingPrecision::kFloat16);
+  EXPECT_EQ(half, wide.converted(EmbeddingPrecision::kFloat16));
 }
 
 TEST(SimulatedEncoders, MissingOrWrongLabelsAreErrors) {
@@ -196,7 +214,7 @@ TEST(SimulatedEncoders, OtherDimensionsWork) {
   config.confusion_cell = 8;
   SimulatedDenseEncoder dense(config);
   const FeatureMap f = dense.encode(scene(3.0));
-  ASSERT_EQ(f.data.size(), 64u * 60 * 80);
+  ASSERT_EQ(f.size(), 64u * 60 * 80);
   EXPECT_NEAR(Eigen::Map<const Eigen::VectorXf>(f.pixel(40, 30), 64).norm(), 1.f, 1e-4f);
   EXPECT_GT(agreement(argmax_classes(f, simulated_class_prototypes(config)), scene(0).labels, config), 0.6);
   EXPECT_EQ(SimulatedTextEncoder(config).encode("mud").size(), 64u);

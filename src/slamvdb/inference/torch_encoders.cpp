@@ -33,7 +33,13 @@ std::string describe(const std::vector<ImageFrame>& frames, std::size_t first, s
   return fmt::format("a batch of {} images starting with '{}'", n, name(frames[first]));
 }
 
-at::Tensor unit_vectors(const at::Tensor& t, int64_t dim) { return t / t.norm(2, dim, true).clamp_min(1e-12); }
+at::Tensor unit_vectors(const at::Tensor& t, int64_t dim) {
+  if (t.scalar_type() != torch::kHalf) return t / t.norm(2, dim, true).clamp_min(1e-12);
+  // fp16 output stays fp16: the norms are taken in fp32 and the scale, capped to fp16's largest
+  // value (a zero vector stays zero instead of 0 x inf), applied in fp16.
+  const at::Tensor scale = t.norm(2, dim, true, torch::kFloat).clamp_min(1e-12).reciprocal().clamp_max(65504.0);
+  return t * scale.to(torch::kHalf);
+}
 
 // A loaded TorchScript module with its manifest; shared by the three encoders.
 class TorchModel {
@@ -62,8 +68,9 @@ class TorchModel {
 
   const ModelManifest& manifest() const { return manifest_; }
 
-  // Runs the network on `input` and returns its float output; `what` names the input in errors.
-  at::Tensor forward(at::Tensor input, const std::string& what) {
+  // Runs the network on `input` and returns its output, contiguous, as fp32 or (keep_half and the
+  // network gives fp16) as fp16; `what` names the input in errors.
+  at::Tensor forward(at::Tensor input, const std::string& what, bool keep_half = false) {
     if (threads_ > 0) at::set_num_threads(threads_);
     c10::InferenceMode no_autograd;
     c10::IValue out;
@@ -77,7 +84,9 @@ class TorchModel {
       throw Error(fmt::format("model '{}' ({}) returned a {} instead of a tensor", manifest_.model_id,
                               manifest_.model_path.string(), out.tagKind()));
     }
-    return out.toTensor().to(torch::kFloat).contiguous();
+    at::Tensor t = out.toTensor();
+    if (keep_half && t.scalar_type() == torch::kHalf) return t.contiguous();
+    return t.to(torch::kFloat).contiguous();
   }
 
   void expect_shape(const at::Tensor& t, const std::vector<int64_t>& expected, const char* fields,
@@ -140,16 +149,20 @@ struct TorchDenseImageEncoder::Impl {
     for (std::size_t first = 0; first < frames.size(); first += m.batch_size) {
       const std::size_t n = std::min<std::size_t>(m.batch_size, frames.size() - first);
       const std::string what = describe(frames, first, n);
-      at::Tensor out = model.forward(model.image_batch(frames, first, n), what);
+      at::Tensor out = model.forward(model.image_batch(frames, first, n), what, /*keep_half=*/true);
       model.expect_shape(out, {static_cast<int64_t>(n), o.dim, o.height, o.width},
                          "N x output.dim x output.height x output.width", what);
       if (o.normalize_output) out = unit_vectors(out, 1);
       // C x h x w -> pixel-major, straight into the map. As a 2-D transpose, ATen's blocked copy
-      // is ~4x faster than a permuted 3-D copy (70 -> 16 ms for 512 x 128 x 192).
+      // is ~4x faster than a permuted 3-D copy (70 -> 16 ms for 512 x 128 x 192). An fp16 output
+      // (a network run in half precision) stays fp16: fusion reads half the bytes.
       const int64_t pixels = int64_t{o.height} * o.width;
+      const bool half = out.scalar_type() == torch::kHalf;
       for (std::size_t i = 0; i < n; ++i) {
-        FeatureMap& map = maps.emplace_back(o.dim, o.height, o.width);
-        torch::from_blob(map.data.data(), {pixels, o.dim})
+        FeatureMap& map = maps.emplace_back(o.dim, o.height, o.width,
+                                            half ? EmbeddingPrecision::kFloat16 : EmbeddingPrecision::kFloat32);
+        void* storage = half ? static_cast<void*>(map.half_values().data()) : map.values().data();
+        torch::from_blob(storage, {pixels, o.dim}, half ? torch::kHalf : torch::kFloat)
             .copy_(out[static_cast<int64_t>(i)].view({o.dim, pixels}).t());
       }
     }
@@ -160,10 +173,10 @@ struct TorchDenseImageEncoder::Impl {
 TorchDenseImageEncoder::TorchDenseImageEncoder(const fs::path& model_or_manifest, const TorchEncoderOptions& options)
     : impl_(new Impl{TorchModel(model_or_manifest, ModelKind::kDenseImage, options)}) {  // clang 14: no parenthesized aggregate init
   if (!options.warm_up) return;
-  const FeatureMap map = impl_->encode_batch({impl_->model.warm_up_frame()}).front();
+  const FeatureMap map =
+      impl_->encode_batch({impl_->model.warm_up_frame()}).front().converted(EmbeddingPrecision::kFloat32);
   impl_->model.expect_unit_vectors(
-      torch::from_blob(const_cast<float*>(map.data.data()), {static_cast<int64_t>(map.height) * map.width, map.dim}),
-      1);
+      torch::from_blob(const_cast<float*>(map.values().data()), {static_cast<int64_t>(map.pixels()), map.dim()}), 1);
 }
 TorchDenseImageEncoder::~TorchDenseImageEncoder() = default;
 FeatureMap TorchDenseImageEncoder::encode(const ImageFrame& frame) {

@@ -51,9 +51,9 @@ std::string read_text(const fs::path& p) {
 // A 3 x H x W float array of 0..255 values (as make_test_models.py saves images) as RGB cv::Mat.
 cv::Mat read_image_npy(const fs::path& p) {
   const FeatureMap planar = read_feature_npy(p);
-  cv::Mat rgb(planar.height, planar.width, CV_8UC3);
-  for (int y = 0; y < planar.height; ++y)
-    for (int x = 0; x < planar.width; ++x)
+  cv::Mat rgb(planar.height(), planar.width(), CV_8UC3);
+  for (int y = 0; y < planar.height(); ++y)
+    for (int x = 0; x < planar.width(); ++x)
       for (int c = 0; c < 3; ++c) rgb.at<cv::Vec3b>(y, x)[c] = static_cast<uint8_t>(planar.pixel(x, y)[c]);
   return rgb;
 }
@@ -130,19 +130,19 @@ TEST_F(TorchEncoders, DenseEncoderReproducesPythonIncludingPreprocessing) {
   EXPECT_EQ(encoder.dim(), 16);
   const FeatureMap expected = read_feature_npy(dir_ / "dense_output.npy");
   const FeatureMap got = encoder.encode(frame_of(read_image_npy(dir_ / "dense_input.npy"), "dense_input"));
-  ASSERT_EQ(got.dim, expected.dim);
-  ASSERT_EQ(got.height, 32);
-  ASSERT_EQ(got.width, 48);
-  ASSERT_EQ(got.height, expected.height);
-  ASSERT_EQ(got.width, expected.width);
-  EXPECT_LT(max_abs_diff(got.data.data(), expected.data.data(), got.data.size()), 1e-5f);
+  ASSERT_EQ(got.dim(), expected.dim());
+  ASSERT_EQ(got.height(), 32);
+  ASSERT_EQ(got.width(), 48);
+  ASSERT_EQ(got.height(), expected.height());
+  ASSERT_EQ(got.width(), expected.width());
+  EXPECT_LT(max_abs_diff(got.values().data(), expected.values().data(), got.size()), 1e-5f);
   float norm2 = 0.0f;
-  for (int c = 0; c < got.dim; ++c) norm2 += got.pixel(5, 7)[c] * got.pixel(5, 7)[c];
+  for (int c = 0; c < got.dim(); ++c) norm2 += got.pixel(5, 7)[c] * got.pixel(5, 7)[c];
   EXPECT_NEAR(norm2, 1.0f, 1e-5f);
   // The comparison is sensitive to pre-processing: swapping the channel order breaks it.
   TorchDenseImageEncoder bgr(variant("dense", "dense_bgr", [](json& m) { m["input"]["channel_order"] = "BGR"; }));
   const FeatureMap swapped = bgr.encode(frame_of(read_image_npy(dir_ / "dense_input.npy"), "dense_input"));
-  EXPECT_GT(max_abs_diff(swapped.data.data(), expected.data.data(), got.data.size()), 1e-3f);
+  EXPECT_GT(max_abs_diff(swapped.values().data(), expected.values().data(), got.size()), 1e-3f);
 }
 
 TEST_F(TorchEncoders, DenseBatchesEqualSingleFrames) {
@@ -157,10 +157,10 @@ TEST_F(TorchEncoders, DenseBatchesEqualSingleFrames) {
   ASSERT_EQ(maps.size(), 3u);
   for (std::size_t i = 0; i < frames.size(); ++i) {
     const FeatureMap single = encoder.encode(frames[i]);
-    ASSERT_EQ(single.data.size(), maps[i].data.size());
-    EXPECT_LT(max_abs_diff(single.data.data(), maps[i].data.data(), single.data.size()), 1e-5f) << i;
+    ASSERT_EQ(single.size(), maps[i].size());
+    EXPECT_LT(max_abs_diff(single.values().data(), maps[i].values().data(), single.size()), 1e-5f) << i;
   }
-  EXPECT_GT(max_abs_diff(maps[0].data.data(), maps[1].data.data(), maps[0].data.size()), 1e-2f);
+  EXPECT_GT(max_abs_diff(maps[0].values().data(), maps[1].values().data(), maps[0].size()), 1e-2f);
   EXPECT_TRUE(encoder.encode_batch({}).empty());
 }
 
@@ -170,8 +170,8 @@ TEST_F(TorchEncoders, ImageEncoderReproducesPythonIncludingCentreCrop) {
   const cv::Mat image = read_image_npy(dir_ / "image_input.npy");
   ASSERT_EQ(image.cols, 40);  // the 32 x 32 model sees the centre columns 4..35
   const std::vector<float> got = encoder.encode(frame_of(image, "image_input"));
-  ASSERT_EQ(got.size(), static_cast<std::size_t>(expected.dim));
-  EXPECT_LT(max_abs_diff(got.data(), expected.data.data(), got.size()), 1e-5f);
+  ASSERT_EQ(got.size(), static_cast<std::size_t>(expected.dim()));
+  EXPECT_LT(max_abs_diff(got.data(), expected.values().data(), got.size()), 1e-5f);
 }
 
 TEST_F(TorchEncoders, TextEncoderReproducesPythonIncludingTokenizer) {
@@ -181,12 +181,12 @@ TEST_F(TorchEncoders, TextEncoderReproducesPythonIncludingTokenizer) {
   std::string prompt;
   int i = 0;
   for (; std::getline(prompts, prompt); ++i) {
-    ASSERT_LT(i, expected.width);
+    ASSERT_LT(i, expected.width());
     const std::vector<float> got = encoder.encode(prompt);
-    ASSERT_EQ(got.size(), static_cast<std::size_t>(expected.dim));
+    ASSERT_EQ(got.size(), static_cast<std::size_t>(expected.dim()));
     EXPECT_LT(max_abs_diff(got.data(), expected.pixel(i, 0), got.size()), 1e-5f) << "prompt: " << prompt;
   }
-  EXPECT_EQ(i, expected.width);
+  EXPECT_EQ(i, expected.width());
   const std::vector<float> a = encoder.encode("tall grass"), b = encoder.encode("asphalt");
   EXPECT_GT(max_abs_diff(a.data(), b.data(), a.size()), 1e-3f);
 }
@@ -211,7 +211,7 @@ TEST_F(TorchEncoders, ExportScriptsProduceLoadableModels) {
   EXPECT_EQ(clip_image.manifest().input.resize, ResizePolicy::kResizeShortCenterCrop);
   // Any image size goes in: the manifests ask for resizing.
   const cv::Mat big(300, 500, CV_8UC3, cv::Scalar(10, 200, 30));
-  EXPECT_EQ(lseg.encode(frame_of(big, "big")).height, lseg.manifest().output.height);
+  EXPECT_EQ(lseg.encode(frame_of(big, "big")).height(), lseg.manifest().output.height);
   EXPECT_EQ(clip_image.encode(frame_of(big, "big")).size(), static_cast<std::size_t>(clip_image.dim()));
 }
 
@@ -253,7 +253,7 @@ TEST_F(TorchEncoders, WrongImageSizeUnderExactPolicyIsReported) {
   TorchDenseImageEncoder encoder(exact);
   const cv::Mat wrong(40, 50, CV_8UC3, cv::Scalar::all(0));
   expect_error([&] { encoder.encode(frame_of(wrong, "cam_0042.jpg")); }, {"cam_0042.jpg", "50 x 40", "96 x 64"});
-  EXPECT_EQ(encoder.encode(frame_of(read_image_npy(dir_ / "dense_input.npy"), "ok")).width, 48);
+  EXPECT_EQ(encoder.encode(frame_of(read_image_npy(dir_ / "dense_input.npy"), "ok")).width(), 48);
 }
 
 TEST_F(TorchEncoders, NetworkThatThrowsIsReportedWithItsMessage) {
@@ -301,8 +301,8 @@ TEST_F(TorchEncoders, SegmentCommandWritesFeaturesAndBestClassImage) {
   TorchDenseImageEncoder dense(model("dense"));
   const FeatureMap expected = dense.encode(frame_of(rgb, "scene.png"));
   const FeatureMap features = read_feature_npy(out_dir / "features.npy");
-  ASSERT_EQ(features.data.size(), expected.data.size());
-  EXPECT_LT(max_abs_diff(features.data.data(), expected.data.data(), expected.data.size()), 1e-5f);
+  ASSERT_EQ(features.size(), expected.size());
+  EXPECT_LT(max_abs_diff(features.values().data(), expected.values().data(), expected.size()), 1e-5f);
 
   // The best class per pixel, recomputed here from the same encoders.
   TorchTextEncoder text(model("text"));
@@ -317,7 +317,7 @@ TEST_F(TorchEncoders, SegmentCommandWritesFeaturesAndBestClassImage) {
       float best_score = -1e30f;
       for (int k = 0; k < 3; ++k) {
         float s = 0.0f;
-        for (int c = 0; c < features.dim; ++c) s += features.pixel(x, y)[c] * classes[k][c];
+        for (int c = 0; c < features.dim(); ++c) s += features.pixel(x, y)[c] * classes[k][c];
         if (s > best_score) best_score = s, best = k;
       }
       EXPECT_EQ(labels.at<uint8_t>(y, x), best) << x << "," << y;

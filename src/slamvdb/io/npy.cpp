@@ -92,8 +92,9 @@ NpyHeader parse_header(const std::string& dict, const std::filesystem::path& pat
 
 // Blocked transpose of a rows x cols matrix of T (row-major at `src`, any alignment) into a
 // cols x rows float matrix; the tiles keep reads and writes within a few cache lines.
-template <typename T, typename Convert>
-void transpose(const unsigned char* src, float* dst, std::size_t rows, std::size_t cols, Convert convert) {
+// rows x cols values of T at src (unaligned bytes) -> cols x rows values of Out at dst.
+template <typename T, typename Out, typename Convert>
+void transpose(const unsigned char* src, Out* dst, std::size_t rows, std::size_t cols, Convert convert) {
   constexpr std::size_t kTile = 32;
   const std::size_t col_tiles = (cols + kTile - 1) / kTile;
   tbb::parallel_for(std::size_t{0}, col_tiles, [&](std::size_t tile) {
@@ -229,15 +230,16 @@ void read_feature_npy(const std::filesystem::path& path, FeatureMap& map) {
     throw Error(fmt::format("npy file {} {}: shape ({}) needs {} bytes of data, found {}", path,
                             found < expected ? "is truncated" : "has trailing bytes", fmt::join(h.shape, ", "),
                             expected, found));
-  map.dim = static_cast<int>(shape[0]);
-  map.height = static_cast<int>(shape[1]);
-  map.width = static_cast<int>(shape[2]);
-  map.data.resize(channels * pixels);
-  const unsigned char* payload = file.data() + preamble + header_len;
-  if (element == 4)
-    transpose<float>(payload, map.data.data(), channels, pixels, [](float v) { return v; });
-  else
-    transpose<uint16_t>(payload, map.data.data(), channels, pixels, half_to_float);
+  // '<f2' stays fp16 (no widening: fusion reads half the bytes); '<f4' is fp32.
+  const auto identity = [](auto v) { return v; };
+  if (element == 4) {
+    map.reset(static_cast<int>(shape[0]), static_cast<int>(shape[1]), static_cast<int>(shape[2]));
+    transpose<float>(file.data() + preamble + header_len, map.values().data(), channels, pixels, identity);
+  } else {
+    map.reset(static_cast<int>(shape[0]), static_cast<int>(shape[1]), static_cast<int>(shape[2]),
+              EmbeddingPrecision::kFloat16);
+    transpose<uint16_t>(file.data() + preamble + header_len, map.half_values().data(), channels, pixels, identity);
+  }
 }
 
 void write_npy_array(const std::filesystem::path& path, const float* data, const std::vector<std::size_t>& shape) {
@@ -267,16 +269,16 @@ void write_npy_array(const std::filesystem::path& path, const void* data, const 
 }
 
 void write_feature_npy(const std::filesystem::path& path, const FeatureMap& map) {
-  const std::size_t pixels = static_cast<std::size_t>(map.height) * map.width;
-  if (map.data.size() != pixels * map.dim)
-    throw Error(fmt::format("cannot write {}: feature map data has {} values, not {} x {} x {}", path, map.data.size(),
-                            map.dim, map.height, map.width));
-  std::vector<float> chw(map.data.size());
-  transpose<float>(reinterpret_cast<const unsigned char*>(map.data.data()), chw.data(), pixels,
-                   static_cast<std::size_t>(map.dim), [](float v) { return v; });
-  write_npy_array(
-      path, chw.data(),
-      {static_cast<std::size_t>(map.dim), static_cast<std::size_t>(map.height), static_cast<std::size_t>(map.width)});
+  const std::size_t pixels = map.pixels(), dim = static_cast<std::size_t>(map.dim());
+  std::vector<float> chw(map.size());
+  if (map.precision() == EmbeddingPrecision::kFloat32)
+    transpose<float>(reinterpret_cast<const unsigned char*>(map.values().data()), chw.data(), pixels, dim,
+                     [](float v) { return v; });
+  else
+    transpose<uint16_t>(reinterpret_cast<const unsigned char*>(map.half_values().data()), chw.data(), pixels, dim,
+                        [](uint16_t h) { return half_to_float(h); });
+  write_npy_array(path, chw.data(),
+                  {dim, static_cast<std::size_t>(map.height()), static_cast<std::size_t>(map.width())});
 }
 
 }  // namespace slamvdb

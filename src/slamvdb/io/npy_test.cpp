@@ -46,12 +46,15 @@ std::vector<float> chw_array(int C, int H, int W) {
 }
 
 void expect_chw_layout(const FeatureMap& map, int C, int H, int W) {
-  ASSERT_EQ(map.dim, C);
-  ASSERT_EQ(map.height, H);
-  ASSERT_EQ(map.width, W);
+  ASSERT_EQ(map.dim(), C);
+  ASSERT_EQ(map.height(), H);
+  ASSERT_EQ(map.width(), W);
+  std::vector<float> pixel(static_cast<std::size_t>(C));
   for (int y = 0; y < H; ++y)
-    for (int x = 0; x < W; ++x)
-      for (int c = 0; c < C; ++c) ASSERT_EQ(map.pixel(x, y)[c], chw_value(c, y, x, H, W)) << c << " " << y << " " << x;
+    for (int x = 0; x < W; ++x) {
+      map.decode_pixel(x, y, pixel.data());
+      for (int c = 0; c < C; ++c) ASSERT_EQ(pixel[c], chw_value(c, y, x, H, W)) << c << " " << y << " " << x;
+    }
 }
 
 std::string error_of(const fs::path& path) {
@@ -66,20 +69,20 @@ std::string error_of(const fs::path& path) {
 TEST(Npy, Float32RoundTripKeepsPixelMajorLayout) {
   TempDir tmp;
   FeatureMap map(37, 5, 41);  // sizes that are not multiples of the transpose tile
-  for (std::size_t i = 0; i < map.data.size(); ++i) map.data[i] = static_cast<float>(i) * 0.5f - 3.0f;
+  for (std::size_t i = 0; i < map.size(); ++i) map.values()[i] = static_cast<float>(i) * 0.5f - 3.0f;
   write_feature_npy(tmp.path / "m.npy", map);
   const FeatureMap back = read_feature_npy(tmp.path / "m.npy");
-  EXPECT_EQ(back.dim, 37);
-  EXPECT_EQ(back.height, 5);
-  EXPECT_EQ(back.width, 41);
-  EXPECT_EQ(back.data, map.data);
+  EXPECT_EQ(back.dim(), 37);
+  EXPECT_EQ(back.height(), 5);
+  EXPECT_EQ(back.width(), 41);
+  EXPECT_EQ(back, map);
   FeatureMap reused(2, 100, 100);  // larger storage: shrinks to the file's shape
   read_feature_npy(tmp.path / "m.npy", reused);
-  EXPECT_EQ(reused.dim, 37);
-  EXPECT_EQ(reused.width, 41);
-  EXPECT_EQ(reused.data, map.data);
+  EXPECT_EQ(reused.dim(), 37);
+  EXPECT_EQ(reused.width(), 41);
+  EXPECT_EQ(reused, map);
   // Header plus data, the data 64-byte aligned as the format asks.
-  EXPECT_EQ(fs::file_size(tmp.path / "m.npy") % 64, (map.data.size() * 4) % 64);
+  EXPECT_EQ(fs::file_size(tmp.path / "m.npy") % 64, (map.size() * 4) % 64);
 }
 
 TEST(Npy, ReadsChwAndBatchedChwAsPixelMajor) {
@@ -93,15 +96,36 @@ TEST(Npy, ReadsChwAndBatchedChwAsPixelMajor) {
       W);
 }
 
-TEST(Npy, ReadsFloat16) {
+// A float16 file stays fp16 (fusion reads half the bytes), transposed bit for bit.
+TEST(Npy, ReadsFloat16AsFp16) {
   TempDir tmp;
   const int C = 2, H = 3, W = 7;
   const auto v = chw_array(C, H, W);  // small integers are exact in fp16
   std::vector<uint16_t> half(v.size());
   for (std::size_t i = 0; i < v.size(); ++i) half[i] = float_to_half(v[i]);
+  half[5] = 0x7e00;  // NaN and -Inf are kept as they are: fusion counts them
+  half[6] = 0xfc00;
+  const fs::path path = write_raw_npy(tmp.path / "h.npy", "<f2", false, "(2, 3, 7)", half.data(), half.size() * 2);
+  const FeatureMap map = read_feature_npy(path);
+  EXPECT_EQ(map.precision(), EmbeddingPrecision::kFloat16);
+  EXPECT_EQ(map.bytes(), half.size() * 2);
+  EXPECT_THROW(map.values(), Error);  // an fp32 reader is told, not handed reinterpreted bytes
+  for (int c = 0; c < C; ++c)
+    for (int y = 0; y < H; ++y)
+      for (int x = 0; x < W; ++x)
+        ASSERT_EQ(map.half_pixel(x, y)[c], half[(static_cast<std::size_t>(c) * H + y) * W + x]) << c << y << x;
+
+  // Reading into a reused fp32 map switches it to fp16; an fp32 file switches it back.
+  FeatureMap reused(C, H, W);
+  read_feature_npy(path, reused);
+  EXPECT_EQ(reused, map);
+  half[5] = float_to_half(5.0f), half[6] = float_to_half(6.0f);
   expect_chw_layout(
-      read_feature_npy(write_raw_npy(tmp.path / "h.npy", "<f2", false, "(2, 3, 7)", half.data(), half.size() * 2)), C,
+      read_feature_npy(write_raw_npy(tmp.path / "h2.npy", "<f2", false, "(2, 3, 7)", half.data(), half.size() * 2)), C,
       H, W);
+  read_feature_npy(write_raw_npy(tmp.path / "f.npy", "<f4", false, "(2, 3, 7)", v.data(), v.size() * 4), reused);
+  EXPECT_EQ(reused.precision(), EmbeddingPrecision::kFloat32);
+  expect_chw_layout(reused, C, H, W);
 }
 
 TEST(Npy, BadFilesAreErrorsThatSayWhy) {

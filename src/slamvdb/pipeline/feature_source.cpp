@@ -20,9 +20,15 @@ void EncoderFeatureSource::features_into(const ImageRecord& record, FeatureMap& 
 }
 
 FeatureMap NpyFeatureSource::features_for(const ImageRecord& record) {
+  FeatureMap out;
+  features_into(record, out);
+  return out;
+}
+
+void NpyFeatureSource::features_into(const ImageRecord& record, FeatureMap& out) {
   if (record.features.empty())
     throw Error("image " + record.rgb.filename().string() + " has no precomputed feature file");
-  return read_feature_npy(record.features);
+  read_feature_npy(record.features, out);
 }
 
 }  // namespace slamvdb

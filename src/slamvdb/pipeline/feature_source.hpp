@@ -38,6 +38,7 @@ class NpyFeatureSource : public FeatureSource {
  public:
   explicit NpyFeatureSource(std::string model_id) : model_id_(std::move(model_id)) {}
   FeatureMap features_for(const ImageRecord& record) override;
+  void features_into(const ImageRecord& record, FeatureMap& out) override;  // fp16 files stay fp16
   std::string model_id() const override { return model_id_; }
 
  private:

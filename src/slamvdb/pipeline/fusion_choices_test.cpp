@@ -66,7 +66,7 @@ TEST_F(MappingPipelineTest, APoisonedFrameLeavesEveryVoxelAsWithoutIt) {
   // A whole frame of NaN (fp16 overflow everywhere): refused and counted; the map is the map
   // built without that image.
   DamagingSource all_nan(clean, [&](const ImageRecord& r, FeatureMap& f) {
-    if (r.stamp == poisoned_stamp) std::fill(f.data.begin(), f.data.end(), nan);
+    if (r.stamp == poisoned_stamp) std::fill(f.values().begin(), f.values().end(), nan);
   });
   PipelineReport poisoned_report, without_report;
   const SemanticMap poisoned = build_map(seq, &all_nan, o, poisoned_report);
@@ -82,11 +82,11 @@ TEST_F(MappingPipelineTest, APoisonedFrameLeavesEveryVoxelAsWithoutIt) {
   // counted by reason; the map equals the one where the same pixels carried nothing (zeros).
   auto damage_some = [&](float value, bool whole_vector) {
     return [=](const ImageRecord&, FeatureMap& f) {
-      for (int y = 0; y < f.height; y += 7)
-        for (int x = 0; x < f.width; x += 5) {
+      for (int y = 0; y < f.height(); y += 7)
+        for (int x = 0; x < f.width(); x += 5) {
           float* p = f.pixel(x, y);
-          if (whole_vector) std::fill_n(p, f.dim, value);
-          else p[f.dim / 2] = value;
+          if (whole_vector) std::fill_n(p, f.dim(), value);
+          else p[f.dim() / 2] = value;
         }
     };
   };

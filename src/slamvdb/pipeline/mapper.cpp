@@ -156,7 +156,7 @@ bool Mapper::add_features(double stamp, FeatureMap features) {
   auto item = std::make_unique<Item>();
   item->is_scan = false;
   item->stamp = stamp;
-  item->bytes = features.data.size() * sizeof(float);
+  item->bytes = features.bytes();
   item->features = std::move(features);
   return admit(lock, std::move(item));
 }
@@ -242,7 +242,7 @@ void Mapper::inference_loop() {
       if (!job) return false;
       // Results count against the bound too (a spare buffer it would fill again counts once);
       // the mapper's very next item is always encoded, or nothing could ever free the queue.
-      const std::size_t reusable = spare_features_.empty() ? 0 : spare_features_.back().data.size() * sizeof(float);
+      const std::size_t reusable = spare_features_.empty() ? 0 : spare_features_.back().bytes();
       return queued_bytes_ - reusable <= options_.max_queued_bytes || job == next_item();
     });
     if (stopping_) return;
@@ -251,7 +251,7 @@ void Mapper::inference_loop() {
     if (!spare_features_.empty()) {
       features = std::move(spare_features_.back());
       spare_features_.pop_back();
-      queued_bytes_ -= features.data.size() * sizeof(float);
+      queued_bytes_ -= features.bytes();
     }
     lock.unlock();
     const auto t0 = Clock::now();
@@ -266,7 +266,7 @@ void Mapper::inference_loop() {
     lock.lock();
     report_.inference.busy_seconds += dt;
     ++(error.empty() ? report_.inference.completed : report_.inference.failed);
-    job->bytes = features.data.size() * sizeof(float);
+    job->bytes = features.bytes();
     queued_bytes_ += job->bytes;
     report_.peak_queued_bytes = std::max(report_.peak_queued_bytes, queued_bytes_);
     job->features = std::move(features);
@@ -329,7 +329,7 @@ void Mapper::mapping_loop() {
       return;
     }
     lock.lock();
-    const std::size_t spare_bytes = item->features.data.size() * sizeof(float);
+    const std::size_t spare_bytes = item->features.bytes();
     if (!item->is_scan && features_ && spare_features_.size() < kSpareFeatureMaps && spare_bytes > 0 &&
         queued_bytes_ + spare_bytes <= options_.max_queued_bytes) {
       queued_bytes_ += spare_bytes;
@@ -360,13 +360,13 @@ void Mapper::process(Item& item, const Pose& T_world_lidar) {
     return;
   }
   const int dim = options_.map.semantic.dim;
-  if (item.error.empty() && item.features.dim != dim)  // every frame would fail: a configuration error
+  if (item.error.empty() && item.features.dim() != dim)  // every frame would fail: a configuration error
     throw Error(fmt::format("features for {} have {} channels but the map stores {}-d embeddings (set --dim to match "
-                            "the encoder)", item.name(), item.features.dim, dim));
+                            "the encoder)", item.name(), item.features.dim(), dim));
   FusionStats stats;
   bool fused = false;
   if (item.error.empty()) {
-    const CameraModel camera = options_.camera.scaled(item.features.width, item.features.height);
+    const CameraModel camera = options_.camera.scaled(item.features.width(), item.features.height());
     const Pose T_world_camera = T_world_lidar * options_.T_lidar_camera;
     const bool all = options_.fusion.occlusion_from_other_submaps;
     fused = map_.update_active(

@@ -29,7 +29,7 @@ CameraModel small_camera() {
 
 FeatureMap unit_features(int dim, float value = 1.0f) {
   FeatureMap f(dim, 8, 10);
-  for (float& v : f.data) v = value / std::sqrt(static_cast<float>(dim));
+  for (float& v : f.values()) v = value / std::sqrt(static_cast<float>(dim));
   return f;
 }
 

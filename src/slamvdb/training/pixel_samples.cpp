@@ -55,11 +55,12 @@ void PixelSamples::reserve(std::size_t rows) {
 
 SampleCounts sample_pixels(const FeatureMap& features, std::span<const int> targets, std::size_t count,
                            PixelSampling sampling, uint64_t seed, PixelSamples& out) {
-  const std::size_t pixels = static_cast<std::size_t>(features.width) * features.height;
+  const std::size_t pixels = features.pixels();
   if (targets.size() != pixels)
-    throw Error(fmt::format("{} targets for a {} x {} feature map", targets.size(), features.width, features.height));
-  if (features.dim != out.dim())
-    throw Error(fmt::format("{}-d features cannot join {}-d samples", features.dim, out.dim()));
+    throw Error(
+        fmt::format("{} targets for a {} x {} feature map", targets.size(), features.width(), features.height()));
+  if (features.dim() != out.dim())
+    throw Error(fmt::format("{}-d features cannot join {}-d samples", features.dim(), out.dim()));
   std::map<int, std::vector<int>> by_class;  // ordered: deterministic
   SampleCounts counts;
   for (std::size_t i = 0; i < pixels; ++i)
@@ -88,9 +89,11 @@ SampleCounts sample_pixels(const FeatureMap& features, std::span<const int> targ
     }
     std::sort(chosen.begin(), chosen.end());
   }
+  std::vector<float> feature(static_cast<std::size_t>(features.dim()));
   for (int i : chosen) {
-    const int x = i % features.width, y = i / features.width;
-    if (out.append(features.pixel(x, y), static_cast<int16_t>(targets[i]))) ++counts.sampled;
+    const int x = i % features.width(), y = i / features.width();
+    features.decode_pixel(x, y, feature.data());  // either precision
+    if (out.append(feature.data(), static_cast<int16_t>(targets[i]))) ++counts.sampled;
     else ++counts.bad;
   }
   return counts;

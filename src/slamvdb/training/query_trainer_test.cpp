@@ -112,10 +112,10 @@ TEST(PixelSampling, UniformBalancedAndDeterministic) {
   FeatureMap f(4, 10, 10);
   std::vector<int> targets(100, -1);  // 20 ignored pixels
   for (int i = 0; i < 100; ++i) {
-    for (int d = 0; d < 4; ++d) f.data[i * 4 + d] = float(i + d);
+    for (int d = 0; d < 4; ++d) f.values()[i * 4 + d] = float(i + d);
     if (i >= 20) targets[i] = i < 90 ? 0 : 1;  // 70 of class 0, 10 of class 1
   }
-  f.data[25 * 4 + 0] = NAN;  // a broken feature: dropped, counted
+  f.values()[25 * 4 + 0] = NAN;  // a broken feature: dropped, counted
   const auto count_of = [](const PixelSamples& s, int k) {
     return std::count(s.targets().begin(), s.targets().end(), k);
   };

@@ -107,14 +107,14 @@ QuerySet train_queries(std::span<const ImageRecord> images, FeatureSource& featu
     const FeatureMap map = features.features_for(image);
     const std::string where = image.labels.string();
     if (!train) {
-      train.emplace(map.dim);
-      val.emplace(map.dim);
+      train.emplace(map.dim());
+      val.emplace(map.dim());
       train->reserve(report.train_images * options.pixels_per_image);
       val->reserve(report.val_images * options.pixels_per_image);
-    } else if (map.dim != train->dim()) {
-      throw Error(fmt::format("{}: {}-d features, the first image's were {}-d", where, map.dim, train->dim()));
+    } else if (map.dim() != train->dim()) {
+      throw Error(fmt::format("{}: {}-d features, the first image's were {}-d", where, map.dim(), train->dim()));
     }
-    const std::vector<uint16_t> labels = read_labels_at(image.labels, map.width, map.height);
+    const std::vector<uint16_t> labels = read_labels_at(image.labels, map.width(), map.height());
     std::vector<int> targets(labels.size());
     for (std::size_t p = 0; p < labels.size(); ++p) {
       targets[p] = targets_of(labels[p]);
