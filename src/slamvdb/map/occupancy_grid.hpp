@@ -128,8 +128,10 @@ class OccupancyGrid {
   }
 
  private:
+  // integrate_scan's parts (occupancy_scan.cpp).
   struct ScanContext;
   struct BlockWindow;
+  struct ScanPass;
   Block& block_at(const BlockKey& block_key);
   void set_occupied_bit(Block& b, int index, bool occupied);
   void update_voxel(Block& b, const VoxelKey& key, int index, float delta, ScanContext& ctx);

@@ -4,7 +4,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <memory>
 #include <mutex>
+#include <numeric>
 
 namespace slamvdb {
 
@@ -213,6 +215,35 @@ void mark_segments(const RayCube& cube, const Vec3d& from, std::span<const Vec3d
   static const bool avx2 = __builtin_cpu_supports("avx2");
   if (avx2) mark_segments_avx2(Origin(cube, from), to, words);
   else mark_segments_scalar(cube, from, to, words);
+}
+
+// Rays are cast grouped by direction (cube-map tiles) so that neighbouring rays mark
+// neighbouring words, and by length within a tile: they are cast eight at a time, for as many
+// steps as the longest of the eight needs (two stable counting sorts).
+uint32_t sort_rays_for_casting(const std::vector<uint32_t>& sort_keys, Vec3d* rays) {
+  // Not zeroed (every element is written): these are megabytes.
+  std::unique_ptr<Vec3d[]> by_length;
+  std::unique_ptr<uint32_t[]> by_length_tile;
+  {
+    constexpr uint32_t kBuckets = 1024;
+    std::vector<uint32_t> first(kBuckets + 1, 0);
+    for (const uint32_t k : sort_keys)
+      if (k != kNotCast) ++first[(k & (kBuckets - 1)) + 1];
+    std::partial_sum(first.begin(), first.end(), first.begin());
+    by_length.reset(new Vec3d[first[kBuckets]]), by_length_tile.reset(new uint32_t[first[kBuckets]]);
+    for (uint32_t i = 0; i < sort_keys.size(); ++i)
+      if (const uint32_t k = sort_keys[i]; k != kNotCast) {
+        const uint32_t at = first[k & (kBuckets - 1)]++;
+        by_length[at] = rays[i], by_length_tile[at] = k >> 10;
+      }
+  }
+  const auto num_cast = static_cast<uint32_t>(
+      std::count_if(sort_keys.begin(), sort_keys.end(), [](uint32_t k) { return k != kNotCast; }));
+  std::vector<uint32_t> next(kNumRayTiles + 1, 0);
+  for (uint32_t i = 0; i < num_cast; ++i) ++next[by_length_tile[i] + 1];
+  std::partial_sum(next.begin(), next.end(), next.begin());
+  for (uint32_t i = 0; i < num_cast; ++i) rays[next[by_length_tile[i]]++] = by_length[i];
+  return num_cast;
 }
 
 namespace {

@@ -6,6 +6,7 @@
 // crossing parameters in fixed point and voxel coordinates kept "dilated" in their bit positions of
 // the bitmap index, so that a step is a handful of branch-free integer operations, eight rays at a
 // time with AVX2 (scalar fallback: same arithmetic, same result, one ray at a time).
+#include <algorithm>
 #include <cstddef>
 #include <cstdint>
 #include <span>
@@ -55,6 +56,29 @@ void mark_segments(const RayCube& cube, const Vec3d& from, std::span<const Vec3d
 
 // The same without AVX2 (tests compare the two).
 void mark_segments_scalar(const RayCube& cube, const Vec3d& from, std::span<const Vec3d> to, uint64_t* words);
+
+// The order integrate_scan casts rays in. Rays are grouped by direction: the cells of a cube map
+// around the sensor, kRayTiles x kRayTiles per face (about 5.6 degrees at 16).
+constexpr int kRayTiles = 16;
+constexpr uint32_t kNumRayTiles = 6 * kRayTiles * kRayTiles;
+
+// The tile of a ray's direction d (not necessarily unit length).
+inline uint32_t ray_tile_of(const Vec3d& d) {
+  const Vec3d a = d.cwiseAbs();
+  const int face = a.x() >= a.y() && a.x() >= a.z() ? 0 : (a.y() >= a.z() ? 1 : 2);
+  const double m = 1.0 / a[face], u = d[(face + 1) % 3] * m, v = d[(face + 2) % 3] * m;
+  const int iu = std::min(kRayTiles - 1, static_cast<int>((u + 1) * (kRayTiles / 2))),
+            iv = std::min(kRayTiles - 1, static_cast<int>((v + 1) * (kRayTiles / 2)));
+  return static_cast<uint32_t>(((2 * face + (d[face] < 0)) * kRayTiles + iu) * kRayTiles + iv);
+}
+
+// A cast ray's sort key is its tile, then its length in voxels (10 bits, saturated); dropped rays
+// get kNotCast.
+constexpr uint32_t kNotCast = ~0u;
+
+// Rewrites `rays` (one per sort key; their original order is no longer needed) with the rays to
+// cast, in casting order (see the .cpp); returns how many there are.
+uint32_t sort_rays_for_casting(const std::vector<uint32_t>& sort_keys, Vec3d* rays);
 
 // Bitmaps for integrate_scan, handed back clear: allocating and zeroing 4 MB per thread per scan
 // cost more than the update pass, which clears what it reads. Shared by every grid (a pool per grid
