@@ -104,7 +104,7 @@ TEST(ProjectiveFusionFp16, EqualsFusingTheSameValuesInFp32) {
   // 37: not a multiple of the 8-wide conversion (the tail path); 64: only full vectors.
   for (const int dim : {37, 64}) {
     for (const EmbeddingPrecision storage : {EmbeddingPrecision::kFloat32, EmbeddingPrecision::kFloat16}) {
-      SCOPED_TRACE(testing::Message() << "dim " << dim << ", storage " << static_cast<int>(storage));
+      SCOPED_TRACE(::testing::Message() << "dim " << dim << ", storage " << static_cast<int>(storage));
       std::vector<FusionStats> stats;
       fuse_both_ways({random_half_features(dim, 1), random_half_features(dim, 2), random_half_features(dim, 3)}, dim,
                      storage, &stats);

@@ -17,6 +17,8 @@
 #include "slamvdb/core/error.hpp"
 #include "slamvdb/io/npy.hpp"
 #include "slamvdb/testing/shared_data.hpp"
+#include "slamvdb/testing/run_command.hpp"
+#include "slamvdb/testing/text_file.hpp"
 
 namespace slamvdb {
 namespace {
@@ -26,13 +28,6 @@ using nlohmann::json;
 
 const fs::path kTools = fs::path(SLAMVDB_SOURCE_DIR) / "tools";
 
-std::string quoted(const fs::path& p) {
-  std::string q = p.string();  // built in place: "'" + s + "'" trips GCC 12's bogus -Wrestrict
-  q.insert(q.begin(), '\'');
-  q.push_back('\'');
-  return q;
-}
-
 // The interpreter CMake found (Debian's, with python3-torch), unless $SLAMVDB_PYTHON names
 // another; empty if it cannot import torch and numpy.
 std::string torch_python() {
@@ -41,12 +36,8 @@ std::string torch_python() {
   return std::system((python + " -c 'import torch, numpy' >/dev/null 2>&1").c_str()) == 0 ? python : std::string();
 }
 
-std::string read_text(const fs::path& p) {
-  std::ifstream in(p);
-  std::ostringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
+using testing::quote_path;
+using testing::read_text_file;
 
 // A 3 x H x W float array of 0..255 values (as make_test_models.py saves images) as RGB cv::Mat.
 cv::Mat read_image_npy(const fs::path& p) {
@@ -90,8 +81,8 @@ class TorchEncoders : public ::testing::Test {
     if (python_.empty()) return;
     dir_ = fs::temp_directory_path() / ("slamvdb_torch_test_" + std::to_string(::getpid()));
     fs::create_directories(dir_);
-    const std::string cmd = python_ + " " + quoted(kTools / "make_test_models.py") + " --out " + quoted(dir_) +
-                            " --vocab " + quoted(testing::kClipVocab) + " > " + quoted(dir_ / "make.log") + " 2>&1";
+    const std::string cmd = python_ + " " + quote_path(kTools / "make_test_models.py") + " --out " + quote_path(dir_) +
+                            " --vocab " + quote_path(testing::kClipVocab) + " > " + quote_path(dir_ / "make.log") + " 2>&1";
     models_ok_ = std::system(cmd.c_str()) == 0;
   }
   static void TearDownTestSuite() {
@@ -99,7 +90,7 @@ class TorchEncoders : public ::testing::Test {
   }
   void SetUp() override {
     if (python_.empty()) GTEST_SKIP() << "no python3 with torch and numpy (set SLAMVDB_PYTHON)";
-    ASSERT_TRUE(models_ok_) << "tools/make_test_models.py failed:\n" << read_text(dir_ / "make.log");
+    ASSERT_TRUE(models_ok_) << "tools/make_test_models.py failed:\n" << read_text_file(dir_ / "make.log");
   }
 
   static fs::path model(const std::string& name) { return dir_ / (name + ".pt"); }
@@ -107,7 +98,7 @@ class TorchEncoders : public ::testing::Test {
   // NAME.pt beside a copy of BASE.json changed by `edit`: the same network, another manifest.
   template <typename Edit>
   static fs::path variant(const std::string& base, const std::string& name, Edit&& edit) {
-    json manifest = json::parse(read_text(dir_ / (base + ".json")));
+    json manifest = json::parse(read_text_file(dir_ / (base + ".json")));
     edit(manifest);
     std::ofstream(dir_ / (name + ".json")) << manifest.dump(2);
     fs::remove(dir_ / (name + ".pt"));
@@ -116,7 +107,7 @@ class TorchEncoders : public ::testing::Test {
   }
 
   static int run_cli(const std::string& args, const fs::path& stdout_file) {
-    return std::system((std::string(SLAMVDB_CLI_PATH) + " " + args + " > " + quoted(stdout_file) + " 2>&1").c_str());
+    return std::system((std::string(SLAMVDB_CLI_PATH) + " " + args + " > " + quote_path(stdout_file) + " 2>&1").c_str());
   }
 
   static inline std::string python_;
@@ -177,7 +168,7 @@ TEST_F(TorchEncoders, ImageEncoderReproducesPythonIncludingCentreCrop) {
 TEST_F(TorchEncoders, TextEncoderReproducesPythonIncludingTokenizer) {
   TorchTextEncoder encoder(model("text"));
   const FeatureMap expected = read_feature_npy(dir_ / "text_output.npy");  // dim x 1 x prompts
-  std::istringstream prompts(read_text(dir_ / "text_prompts.txt"));
+  std::istringstream prompts(read_text_file(dir_ / "text_prompts.txt"));
   std::string prompt;
   int i = 0;
   for (; std::getline(prompts, prompt); ++i) {
@@ -194,9 +185,9 @@ TEST_F(TorchEncoders, TextEncoderReproducesPythonIncludingTokenizer) {
 TEST_F(TorchEncoders, ExportScriptsProduceLoadableModels) {
   const fs::path out = dir_ / "exported";
   for (const char* script : {"export_lseg.py", "export_clip.py"}) {
-    const std::string cmd = python_ + " " + quoted(kTools / script) + " --random-init-test --out " + quoted(out) +
-                            " --vocab " + quoted(testing::kClipVocab) + " > " + quoted(dir_ / "export.log") + " 2>&1";
-    ASSERT_EQ(std::system(cmd.c_str()), 0) << script << ":\n" << read_text(dir_ / "export.log");
+    const std::string cmd = python_ + " " + quote_path(kTools / script) + " --random-init-test --out " + quote_path(out) +
+                            " --vocab " + quote_path(testing::kClipVocab) + " > " + quote_path(dir_ / "export.log") + " 2>&1";
+    ASSERT_EQ(std::system(cmd.c_str()), 0) << script << ":\n" << read_text_file(dir_ / "export.log");
   }
   // Tiny networks: one thread (the scripts leave the count to libtorch). Warm-up checks shapes and norms.
   const TorchEncoderOptions one_thread{.threads = 1};
@@ -265,16 +256,16 @@ TEST_F(TorchEncoders, EmbedTextCommandPrintsAndSavesTheEncodersVector) {
   TorchTextEncoder encoder(model("text"));
   const std::vector<float> expected = encoder.encode("tall grass");
   const fs::path out = dir_ / "embed.txt", npy = dir_ / "grass.npy";
-  ASSERT_EQ(run_cli("embed-text 'tall grass' --model " + quoted(model("text")) + " --json", out), 0) << read_text(out);
-  const json j = json::parse(read_text(out));
+  ASSERT_EQ(run_cli("embed-text 'tall grass' --model " + quote_path(model("text")) + " --json", out), 0) << read_text_file(out);
+  const json j = json::parse(read_text_file(out));
   EXPECT_EQ(j["model_id"], "tiny-clip-text-random-init");
   EXPECT_EQ(j["text"], "tall grass");
   const auto v = j["embedding"].get<std::vector<float>>();
   ASSERT_EQ(v.size(), expected.size());
   EXPECT_LT(max_abs_diff(v.data(), expected.data(), v.size()), 1e-6f);
 
-  ASSERT_EQ(run_cli("embed-text 'tall grass' --model " + quoted(model("text")) + " --out " + quoted(npy), out), 0)
-      << read_text(out);
+  ASSERT_EQ(run_cli("embed-text 'tall grass' --model " + quote_path(model("text")) + " --out " + quote_path(npy), out), 0)
+      << read_text_file(out);
   // A .npy ends with the raw little-endian float32 data.
   std::ifstream in(npy, std::ios::binary);
   std::vector<float> saved(expected.size());
@@ -282,8 +273,8 @@ TEST_F(TorchEncoders, EmbedTextCommandPrintsAndSavesTheEncodersVector) {
   in.read(reinterpret_cast<char*>(saved.data()), static_cast<std::streamsize>(saved.size() * sizeof(float)));
   ASSERT_TRUE(in);
   EXPECT_EQ(saved, expected);
-  EXPECT_NE(run_cli("embed-text grass --model " + quoted(dir_ / "absent.pt"), out), 0);
-  EXPECT_NE(read_text(out).find("absent.json"), std::string::npos) << read_text(out);
+  EXPECT_NE(run_cli("embed-text grass --model " + quote_path(dir_ / "absent.pt"), out), 0);
+  EXPECT_NE(read_text_file(out).find("absent.json"), std::string::npos) << read_text_file(out);
 }
 
 TEST_F(TorchEncoders, SegmentCommandWritesFeaturesAndBestClassImage) {
@@ -292,11 +283,11 @@ TEST_F(TorchEncoders, SegmentCommandWritesFeaturesAndBestClassImage) {
   cv::resize(rgb, rgb, {192, 128}, 0, 0, cv::INTER_NEAREST);  // the encoder resizes back to 96 x 64
   cv::cvtColor(rgb, bgr, cv::COLOR_RGB2BGR);
   ASSERT_TRUE(cv::imwrite(image.string(), bgr));
-  ASSERT_EQ(run_cli("segment " + quoted(image) + " --model " + quoted(model("dense")) + " --text-model " +
-                        quoted(model("text")) + " --classes 'grass, tree,sky' --out-dir " + quoted(out_dir),
+  ASSERT_EQ(run_cli("segment " + quote_path(image) + " --model " + quote_path(model("dense")) + " --text-model " +
+                        quote_path(model("text")) + " --classes 'grass, tree,sky' --out-dir " + quote_path(out_dir),
                     log),
             0)
-      << read_text(log);
+      << read_text_file(log);
 
   TorchDenseImageEncoder dense(model("dense"));
   const FeatureMap expected = dense.encode(frame_of(rgb, "scene.png"));
@@ -324,7 +315,7 @@ TEST_F(TorchEncoders, SegmentCommandWritesFeaturesAndBestClassImage) {
     }
   const cv::Mat colour = cv::imread((out_dir / "classes.png").string(), cv::IMREAD_COLOR);
   EXPECT_EQ(colour.size(), cv::Size(48, 32));
-  const std::string legend = read_text(out_dir / "legend.txt");
+  const std::string legend = read_text_file(out_dir / "legend.txt");
   EXPECT_NE(legend.find("0\tgrass\t#"), std::string::npos) << legend;
   EXPECT_NE(legend.find("1\ttree\t#"), std::string::npos) << legend;
   EXPECT_NE(legend.find("2\tsky\t#"), std::string::npos) << legend;
@@ -336,11 +327,11 @@ TEST_F(TorchEncoders, SegmentCommandRunsTheSimulatedEncodersOnGroundTruthLabels)
                  labels = fixture / "frame000104-1581624663_149.png";
   if (!fs::exists(image) || !fs::exists(labels)) GTEST_SKIP() << "RELLIS-3D fixture not found at " << fixture;
   const fs::path out_dir = dir_ / "segment_simulated", log = dir_ / "segment_simulated.log";
-  ASSERT_EQ(run_cli("segment " + quoted(image) + " --simulated --labels " + quoted(labels) +
-                        " --classes grass,tree,bush,sky --out-dir " + quoted(out_dir),
+  ASSERT_EQ(run_cli("segment " + quote_path(image) + " --simulated --labels " + quote_path(labels) +
+                        " --classes grass,tree,bush,sky --out-dir " + quote_path(out_dir),
                     log),
             0)
-      << read_text(log);
+      << read_text_file(log);
   const cv::Mat predicted = cv::imread((out_dir / "labels.png").string(), cv::IMREAD_UNCHANGED);
   ASSERT_EQ(predicted.size(), cv::Size(192, 128));
   cv::Mat truth = cv::imread(labels.string(), cv::IMREAD_UNCHANGED);
@@ -356,7 +347,7 @@ TEST_F(TorchEncoders, SegmentCommandRunsTheSimulatedEncodersOnGroundTruthLabels)
     }
   ASSERT_GT(named, 1000);
   EXPECT_GT(static_cast<double>(agree) / named, 0.5) << agree << " of " << named;
-  EXPECT_NE(read_text(log).find("simulated"), std::string::npos) << read_text(log);
+  EXPECT_NE(read_text_file(log).find("simulated"), std::string::npos) << read_text_file(log);
 }
 
 }  // namespace
@@ -369,26 +360,26 @@ namespace {
 // fuses its features: the map's model id is the network's and its embeddings are 16-d.
 TEST_F(TorchEncoders, MapCommandFusesTheNetworksFeatures) {
   const fs::path seq = dir_ / "seq", map = dir_ / "net.svdb";
-  ASSERT_EQ(run_cli("synth " + quoted(seq) + " --length 15 --image-size 192x120", dir_ / "synth.txt"), 0)
-      << read_text(dir_ / "synth.txt");
-  ASSERT_EQ(run_cli("map " + quoted(seq) + " -o " + quoted(map) + " --features model --model " +
-                        quoted(model("dense")) + " --dim 16",
+  ASSERT_EQ(run_cli("synth " + quote_path(seq) + " --length 15 --image-size 192x120", dir_ / "synth.txt"), 0)
+      << read_text_file(dir_ / "synth.txt");
+  ASSERT_EQ(run_cli("map " + quote_path(seq) + " -o " + quote_path(map) + " --features model --model " +
+                        quote_path(model("dense")) + " --dim 16",
                     dir_ / "map.txt"),
             0)
-      << read_text(dir_ / "map.txt");
-  const std::string out = read_text(dir_ / "map.txt");
+      << read_text_file(dir_ / "map.txt");
+  const std::string out = read_text_file(dir_ / "map.txt");
   EXPECT_NE(out.find("network tiny-lseg-random-init: 16-d"), std::string::npos) << out;
   EXPECT_NE(out.find("0 failed"), std::string::npos) << out;
-  ASSERT_EQ(run_cli("info " + quoted(map), dir_ / "info.txt"), 0);
-  const std::string info = read_text(dir_ / "info.txt");
+  ASSERT_EQ(run_cli("info " + quote_path(map), dir_ / "info.txt"), 0);
+  const std::string info = read_text_file(dir_ / "info.txt");
   EXPECT_NE(info.find("tiny-lseg-random-init"), std::string::npos) << info;
   EXPECT_EQ(info.find(" 0 semantic voxels"), std::string::npos) << info;
   // A map dimension that does not match the network is refused with a clear message.
-  EXPECT_NE(run_cli("map " + quoted(seq) + " -o " + quoted(dir_ / "bad.svdb") + " --features model --model " +
-                        quoted(model("dense")),
+  EXPECT_NE(run_cli("map " + quote_path(seq) + " -o " + quote_path(dir_ / "bad.svdb") + " --features model --model " +
+                        quote_path(model("dense")),
                     dir_ / "bad.txt"),
             0);
-  EXPECT_NE(read_text(dir_ / "bad.txt").find("16 channels"), std::string::npos) << read_text(dir_ / "bad.txt");
+  EXPECT_NE(read_text_file(dir_ / "bad.txt").find("16 channels"), std::string::npos) << read_text_file(dir_ / "bad.txt");
 }
 
 }  // namespace
@@ -402,18 +393,18 @@ namespace {
 // so only the plumbing is checked, not the accuracy).
 TEST_F(TorchEncoders, TrainQueriesCommandRunsBothNetworks) {
   const fs::path seq = dir_ / "train_seq", queries = dir_ / "queries.json";
-  ASSERT_EQ(run_cli("synth " + quoted(seq) + " --length 8 --image-size 192x120", dir_ / "synth2.txt"), 0)
-      << read_text(dir_ / "synth2.txt");
-  ASSERT_EQ(run_cli("train-queries " + quoted(seq) + " -o " + quoted(queries) + " --features model --model " +
-                        quoted(model("dense")) + " --text-model " + quoted(model("text")) +
+  ASSERT_EQ(run_cli("synth " + quote_path(seq) + " --length 8 --image-size 192x120", dir_ / "synth2.txt"), 0)
+      << read_text_file(dir_ / "synth2.txt");
+  ASSERT_EQ(run_cli("train-queries " + quote_path(seq) + " -o " + quote_path(queries) + " --features model --model " +
+                        quote_path(model("dense")) + " --text-model " + quote_path(model("text")) +
                         " --epochs 1 --pixels-per-image 64 --val-fraction 0.3",
                     dir_ / "train.txt"),
             0)
-      << read_text(dir_ / "train.txt");
-  const std::string out = read_text(dir_ / "train.txt");
+      << read_text_file(dir_ / "train.txt");
+  const std::string out = read_text_file(dir_ / "train.txt");
   EXPECT_NE(out.find("epoch 1/1: train loss"), std::string::npos) << out;
   EXPECT_NE(out.find("initialised from the text embeddings of the class names"), std::string::npos) << out;
-  const json q = json::parse(read_text(queries));
+  const json q = json::parse(read_text_file(queries));
   EXPECT_EQ(q["model_id"], "tiny-lseg-random-init");
   EXPECT_EQ(q["dim"], 16);
   EXPECT_EQ(q["classes"].size(), 6u);

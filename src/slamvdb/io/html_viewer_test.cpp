@@ -14,6 +14,7 @@
 #include "slamvdb/core/error.hpp"
 #include "slamvdb/testing/run_command.hpp"
 #include "slamvdb/testing/temp_dir.hpp"
+#include "slamvdb/testing/text_file.hpp"
 
 namespace slamvdb {
 namespace {
@@ -39,19 +40,14 @@ HtmlViewerScene test_scene() {
   return scene;
 }
 
-std::string read_text(const fs::path& path) {
-  std::ifstream in(path);
-  std::stringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
+using testing::read_text_file;
 
 TEST(HtmlViewer, PageIsSelfContainedAndEscaped) {
   if (!html_viewer_available()) GTEST_SKIP() << "built without the viewer (npm ci --prefix viewer)";
   testing::TempDir tmp;
   const fs::path page = tmp.path / "map.html";
   write_html_viewer(page, test_scene());
-  const std::string html = read_text(page);
+  const std::string html = read_text_file(page);
   EXPECT_EQ(html.rfind("<!DOCTYPE html>", 0), 0u);
   // No resource is fetched: no src=/href= attributes, no http(s) URL outside comments of the bundle.
   EXPECT_FALSE(std::regex_search(html, std::regex(R"((src|href)\s*=\s*["']?https?:)")));

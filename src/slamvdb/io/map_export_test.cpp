@@ -16,6 +16,8 @@
 
 #include "slamvdb/core/error.hpp"
 #include "slamvdb/store/map_store.hpp"
+#include "slamvdb/testing/run_command.hpp"
+#include "slamvdb/testing/text_file.hpp"
 
 namespace slamvdb {
 namespace {
@@ -123,10 +125,7 @@ std::vector<ColouredVoxel> sample_voxels() {
           {{5.5f, 4.5f, -1.0f}, {200, 100, 50}, 4000000000u}};
 }
 
-std::string read_file(const fs::path& p) {
-  std::ifstream in(p, std::ios::binary);
-  return {std::istreambuf_iterator<char>(in), {}};
-}
+using testing::read_text_file;
 
 const char* const kPlyProperties =
     "element vertex 4\n"
@@ -140,7 +139,7 @@ TEST_F(MapExportTest, BinaryPlyParsesBackExactly) {
   std::size_t last_done = 0;
   write_ply(path, voxels, PlyEncoding::kBinaryLittleEndian, [&](std::size_t done, std::size_t) { last_done = done; });
   EXPECT_EQ(last_done, voxels.size());
-  const std::string bytes = read_file(path);
+  const std::string bytes = read_text_file(path);
   ASSERT_TRUE(bytes.starts_with("ply\nformat binary_little_endian 1.0\n"));
   const std::size_t header_end = bytes.find("end_header\n") + std::strlen("end_header\n");
   EXPECT_NE(bytes.substr(0, header_end).find(kPlyProperties), std::string::npos);
@@ -162,7 +161,7 @@ TEST_F(MapExportTest, AsciiPlyParsesBackExactly) {
   voxels[2].position = {0.1f, -1e-7f, 12345.678f};  // shortest round-trip text must restore the floats
   const fs::path path = dir_ / "map.ply";
   write_ply(path, voxels, PlyEncoding::kAscii);
-  std::istringstream in(read_file(path));
+  std::istringstream in(read_text_file(path));
   std::string line, header;
   while (std::getline(in, line) && line != "end_header") header += line + "\n";
   header += "end_header\n";
@@ -269,7 +268,7 @@ CliRun run_cli(const std::string& args) {
   return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, output};
 }
 
-std::string quoted(const fs::path& p) { return fmt::format("'{}'", p.string()); }
+using testing::quote_path;
 
 SemanticMap small_semantic_map() {
   MapParams params;
@@ -311,7 +310,7 @@ TEST_F(MapExportTest, CliInfoPrintsCountsAndExportWritesBothFiles) {
   const fs::path path = dir_ / "map.svdb";
   save_map(path, map);
 
-  const CliRun json = run_cli("info " + quoted(path) + " --json");
+  const CliRun json = run_cli("info " + quote_path(path) + " --json");
   ASSERT_EQ(json.exit_code, 0) << json.output;
   const auto j = nlohmann::json::parse(json.output);
   EXPECT_EQ(j["voxels"]["known"], map.num_known_voxels());
@@ -324,7 +323,7 @@ TEST_F(MapExportTest, CliInfoPrintsCountsAndExportWritesBothFiles) {
   ASSERT_EQ(j["submaps"].size(), 2u);
   EXPECT_EQ(j["submaps"][1]["translation"][0], 20.0);
 
-  const CliRun text = run_cli("info " + quoted(path));
+  const CliRun text = run_cli("info " + quote_path(path));
   ASSERT_EQ(text.exit_code, 0) << text.output;
   EXPECT_NE(text.output.find(fmt::format("{} known, {} occupied", map.num_known_voxels(), map.num_occupied_voxels())),
             std::string::npos)
@@ -335,10 +334,10 @@ TEST_F(MapExportTest, CliInfoPrintsCountsAndExportWritesBothFiles) {
   EXPECT_NE(text.output.find("SIMULATED CLI test map"), std::string::npos) << text.output;
 
   const fs::path ply = dir_ / "out.ply", png = dir_ / "out.png";
-  const CliRun exported = run_cli("export " + quoted(path) + " --ply " + quoted(ply) + " --png " + quoted(png));
+  const CliRun exported = run_cli("export " + quote_path(path) + " --ply " + quote_path(ply) + " --png " + quote_path(png));
   ASSERT_EQ(exported.exit_code, 0) << exported.output;
   EXPECT_EQ(ply_vertex_count(ply), map.num_occupied_voxels());
-  EXPECT_TRUE(read_file(ply).starts_with("ply\nformat binary_little_endian"));
+  EXPECT_TRUE(read_text_file(ply).starts_with("ply\nformat binary_little_endian"));
   const cv::Mat picture = cv::imread(png.string(), cv::IMREAD_COLOR);
   ASSERT_FALSE(picture.empty());
   // x from 0 to 27.5 m (second submap shifted by 20 m), y from -5 to 5 m, at 0.25 m per pixel: 110 x 40,
@@ -346,22 +345,22 @@ TEST_F(MapExportTest, CliInfoPrintsCountsAndExportWritesBothFiles) {
   ASSERT_EQ(picture.cols % 110, 0);
   const int k = picture.cols / 110;
   EXPECT_EQ(picture.rows, 40 * k);
-  EXPECT_NE(read_file(dir_ / "out.yaml").find(fmt::format("resolution: {:.6f}", 0.25 / k)), std::string::npos);
+  EXPECT_NE(read_text_file(dir_ / "out.yaml").find(fmt::format("resolution: {:.6f}", 0.25 / k)), std::string::npos);
   EXPECT_GT(cv::countNonZero(picture.reshape(1)), 0);
 
-  const CliRun ascii = run_cli("export " + quoted(path) + " --ascii --ply " + quoted(ply));
+  const CliRun ascii = run_cli("export " + quote_path(path) + " --ascii --ply " + quote_path(ply));
   ASSERT_EQ(ascii.exit_code, 0) << ascii.output;
-  EXPECT_TRUE(read_file(ply).starts_with("ply\nformat ascii 1.0\n"));
+  EXPECT_TRUE(read_text_file(ply).starts_with("ply\nformat ascii 1.0\n"));
 }
 
 TEST_F(MapExportTest, CliFailsClearlyOnCorruptMapsAndBadArguments) {
   const fs::path path = dir_ / "map.svdb";
   save_map(path, small_semantic_map());
-  std::string bytes = read_file(path);
+  std::string bytes = read_text_file(path);
   bytes.resize(bytes.size() / 2);
   std::ofstream(path, std::ios::binary | std::ios::trunc) << bytes;
 
-  for (const std::string& args : {"info " + quoted(path), "export " + quoted(path) + " --ply " + quoted(dir_ / "o.ply")}) {
+  for (const std::string& args : {"info " + quote_path(path), "export " + quote_path(path) + " --ply " + quote_path(dir_ / "o.ply")}) {
     const CliRun run = run_cli(args);
     EXPECT_NE(run.exit_code, 0) << args;
     EXPECT_NE(run.output.find(path.string()), std::string::npos) << run.output;
@@ -369,13 +368,13 @@ TEST_F(MapExportTest, CliFailsClearlyOnCorruptMapsAndBadArguments) {
   }
   EXPECT_FALSE(fs::exists(dir_ / "o.ply"));
 
-  const CliRun nothing = run_cli("export " + quoted(path));
+  const CliRun nothing = run_cli("export " + quote_path(path));
   EXPECT_NE(nothing.exit_code, 0);
   EXPECT_NE(nothing.output.find("nothing to export"), std::string::npos) << nothing.output;
-  const CliRun no_dir = run_cli("export " + quoted(path) + " --png " + quoted(dir_ / "missing" / "o.png"));
+  const CliRun no_dir = run_cli("export " + quote_path(path) + " --png " + quote_path(dir_ / "missing" / "o.png"));
   EXPECT_NE(no_dir.exit_code, 0);
   EXPECT_NE(no_dir.output.find("does not exist"), std::string::npos) << no_dir.output;
-  const CliRun missing = run_cli("info " + quoted(dir_ / "nope.svdb"));
+  const CliRun missing = run_cli("info " + quote_path(dir_ / "nope.svdb"));
   EXPECT_NE(missing.exit_code, 0);
   EXPECT_NE(missing.output.find("no such file"), std::string::npos) << missing.output;
 }

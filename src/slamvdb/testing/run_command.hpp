@@ -77,6 +77,7 @@ inline std::string shell_quote(const std::string& text) {
   for (char c : text) out += c == '\'' ? std::string("'\\''") : std::string(1, c);
   return out + "'";
 }
+inline std::string quote_path(const std::filesystem::path& path) { return shell_quote(path.string()); }
 
 // A command running in the background (`/bin/sh -c "exec ..."`, output to `log`), for tests that
 // watch it work and kill it at a chosen moment.
