@@ -78,10 +78,16 @@ inline bool in_grid_extent(const Vec3d& p_grid) {
 
 // The key of the cell containing `p` (metres) on a grid of `inv_cell_size` cells per metre.
 // The point must be inside the extent (in_grid_extent(p * inv_cell_size)).
+// floor() of a value inside int's range, inline: without SSE4.1 (the baseline x86-64 build)
+// std::floor is a library call, and keys are computed per point on hot paths. Same result.
+inline int floor_to_int(double v) {
+  const int i = static_cast<int>(v);  // towards zero
+  return i - (v < i);
+}
 template <class Key>
 Key key_of_point(const Vec3d& p, double inv_cell_size) {
-  return Key(static_cast<int>(std::floor(p.x() * inv_cell_size)), static_cast<int>(std::floor(p.y() * inv_cell_size)),
-             static_cast<int>(std::floor(p.z() * inv_cell_size)));
+  return Key(floor_to_int(p.x() * inv_cell_size), floor_to_int(p.y() * inv_cell_size),
+             floor_to_int(p.z() * inv_cell_size));
 }
 template <class Key>
 Vec3d center_of_key(const Key& k, double cell_size) {

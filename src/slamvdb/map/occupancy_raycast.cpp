@@ -48,7 +48,7 @@ struct Origin {
   int k[3];        // its voxel
   uint32_t start;  // that voxel's bit index
   uint32_t mask[3];
-  uint32_t dummy;  // a bit of the extra brick: where lanes whose ray has ended write
+  uint32_t spare;  // the first bit of the extra brick, where lanes write what is not a voxel
   Origin(const RayCube& cube, const Vec3d& from) {
     start = 0;
     for (int a = 0; a < 3; ++a) {
@@ -57,7 +57,7 @@ struct Origin {
       start |= dilate(k[a] - cube.lo[a], a, cube.side_bits);
       mask[a] = axis_mask(a, cube.side_bits);
     }
-    dummy = static_cast<uint32_t>(cube.num_bricks()) << 9;
+    spare = static_cast<uint32_t>(cube.num_bricks()) << 9;
   }
 };
 
@@ -155,14 +155,34 @@ SLAMVDB_AVX2 void setup8(const Origin& o, const Vec3d* to, __m256i* t, __m256i* 
   }
 }
 
+// Sets the bits of eight lanes' voxels (bit indices in `idx`). A read-modify-write of a word waits
+// for the previous one to the same word, so eight lanes in one word (near the sensor, neighbouring
+// rays all are) are ORed together and written once; finished lanes write spare words of their own
+// for the same reason. (Merging every run of lanes in one word, with a carry between lanes, was
+// slower on the real scan: more work per lane than the waits it saves.)
+SLAMVDB_AVX2 inline void mark8(uint64_t* words, __m256i idx) {
+  alignas(32) uint32_t bit[8];
+  _mm256_store_si256(reinterpret_cast<__m256i*>(bit), idx);
+  const __m256i word = _mm256_srli_epi32(idx, 6);
+  const __m256i same_as_first = _mm256_cmpeq_epi32(word, _mm256_permutevar8x32_epi32(word, _mm256_setzero_si256()));
+  if (_mm256_movemask_ps(_mm256_castsi256_ps(same_as_first)) == 0xff) {
+    uint64_t m = 0;
+    for (int l = 0; l < 8; ++l) m |= uint64_t{1} << (bit[l] & 63);
+    words[bit[0] >> 6] |= m;
+    return;
+  }
+  for (int l = 0; l < 8; ++l) mark(words, bit[l]);
+}
+
 // Eight rays in the lanes of AVX2 registers, stepped together until the longest has ended (rays
 // come grouped by direction, so neighbours have similar lengths); lanes whose ray has ended write
-// to the dummy bit. The axis choice is a pair of comparisons and masks instead of branches.
+// to their spare bit. The axis choice is a pair of comparisons and masks instead of branches.
 SLAMVDB_AVX2 void mark_segments_avx2(const Origin& o, std::span<const Vec3d> to, uint64_t* words) {
   const __m256i mx = _mm256_set1_epi32(static_cast<int>(o.mask[0])), my = _mm256_set1_epi32(static_cast<int>(o.mask[1])),
                 mz = _mm256_set1_epi32(static_cast<int>(o.mask[2]));
-  const __m256i dummy = _mm256_set1_epi32(static_cast<int>(o.dummy)), one = _mm256_set1_epi32(1),
-                lanes = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
+  // Lane l's spare: word l of the extra brick.
+  const __m256i spare = _mm256_add_epi32(_mm256_set1_epi32(static_cast<int>(o.spare)), _mm256_setr_epi32(0, 64, 128, 192, 256, 320, 384, 448));
+  const __m256i one = _mm256_set1_epi32(1), lanes = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
   for (std::size_t first = 0; first < to.size(); first += 8) {
     const std::size_t count = std::min<std::size_t>(8, to.size() - first);
     Vec3d group[8];  // the last group padded with its first ray, then given no steps
@@ -178,13 +198,10 @@ SLAMVDB_AVX2 void mark_segments_avx2(const Origin& o, std::span<const Vec3d> to,
     __m256i x = _mm256_set1_epi32(static_cast<int>(o.start & o.mask[0])),
             y = _mm256_set1_epi32(static_cast<int>(o.start & o.mask[1])),
             z = _mm256_set1_epi32(static_cast<int>(o.start & o.mask[2]));
-    alignas(32) uint32_t bit[8];
     for (int n = 0; n < longest; ++n) {
       const __m256i active = _mm256_cmpgt_epi32(left, _mm256_setzero_si256());
       left = _mm256_sub_epi32(left, one);
-      const __m256i idx = _mm256_blendv_epi8(dummy, _mm256_or_si256(_mm256_or_si256(x, y), z), active);
-      _mm256_store_si256(reinterpret_cast<__m256i*>(bit), idx);
-      for (int l = 0; l < 8; ++l) mark(words, bit[l]);
+      mark8(words, _mm256_blendv_epi8(spare, _mm256_or_si256(_mm256_or_si256(x, y), z), active));
       const __m256i x_first = _mm256_cmpgt_epi32(ty, tx);         // tx < ty
       const __m256i t_min = _mm256_blendv_epi8(ty, tx, x_first);  // the smaller of tx, ty
       const __m256i not_z = _mm256_cmpgt_epi32(tz, t_min);
@@ -201,11 +218,6 @@ SLAMVDB_AVX2 void mark_segments_avx2(const Origin& o, std::span<const Vec3d> to,
 
 }  // namespace
 
-uint32_t RayCube::bit_of(const VoxelKey& k) const {
-  return dilate(k.x() - lo.x(), 0, side_bits) | dilate(k.y() - lo.y(), 1, side_bits) |
-         dilate(k.z() - lo.z(), 2, side_bits);
-}
-
 void mark_segments_scalar(const RayCube& cube, const Vec3d& from, std::span<const Vec3d> to, uint64_t* words) {
   const Origin o(cube, from);
   for (const Vec3d& t : to) mark_ray(o, setup(o, t), words);
@@ -221,26 +233,22 @@ void mark_segments(const RayCube& cube, const Vec3d& from, std::span<const Vec3d
 // neighbouring words, and by length within a tile: they are cast eight at a time, for as many
 // steps as the longest of the eight needs (two stable counting sorts).
 uint32_t sort_rays_for_casting(const std::vector<uint32_t>& sort_keys, Vec3d* rays) {
+  constexpr uint32_t kBuckets = 1024;
+  std::vector<uint32_t> first(kBuckets + 1, 0);
+  for (const uint32_t k : sort_keys)
+    if (k != kNotCast) ++first[(k & (kBuckets - 1)) + 1];
+  std::partial_sum(first.begin(), first.end(), first.begin());
+  const uint32_t num_cast = first[kBuckets];
   // Not zeroed (every element is written): these are megabytes.
-  std::unique_ptr<Vec3d[]> by_length;
-  std::unique_ptr<uint32_t[]> by_length_tile;
-  {
-    constexpr uint32_t kBuckets = 1024;
-    std::vector<uint32_t> first(kBuckets + 1, 0);
-    for (const uint32_t k : sort_keys)
-      if (k != kNotCast) ++first[(k & (kBuckets - 1)) + 1];
-    std::partial_sum(first.begin(), first.end(), first.begin());
-    by_length.reset(new Vec3d[first[kBuckets]]), by_length_tile.reset(new uint32_t[first[kBuckets]]);
-    for (uint32_t i = 0; i < sort_keys.size(); ++i)
-      if (const uint32_t k = sort_keys[i]; k != kNotCast) {
-        const uint32_t at = first[k & (kBuckets - 1)]++;
-        by_length[at] = rays[i], by_length_tile[at] = k >> 10;
-      }
-  }
-  const auto num_cast = static_cast<uint32_t>(
-      std::count_if(sort_keys.begin(), sort_keys.end(), [](uint32_t k) { return k != kNotCast; }));
-  std::vector<uint32_t> next(kNumRayTiles + 1, 0);
-  for (uint32_t i = 0; i < num_cast; ++i) ++next[by_length_tile[i] + 1];
+  std::unique_ptr<Vec3d[]> by_length(new Vec3d[num_cast]);
+  std::unique_ptr<uint32_t[]> by_length_tile(new uint32_t[num_cast]);
+  std::vector<uint32_t> next(kNumRayTiles + 1, 0);  // counted while the first sort runs
+  for (uint32_t i = 0; i < sort_keys.size(); ++i)
+    if (const uint32_t k = sort_keys[i]; k != kNotCast) {
+      const uint32_t at = first[k & (kBuckets - 1)]++;
+      by_length[at] = rays[i], by_length_tile[at] = k >> 10;
+      ++next[(k >> 10) + 1];
+    }
   std::partial_sum(next.begin(), next.end(), next.begin());
   for (uint32_t i = 0; i < num_cast; ++i) rays[next[by_length_tile[i]]++] = by_length[i];
   return num_cast;

@@ -44,7 +44,13 @@ struct RayCube {
            static_cast<unsigned>(k.z() - lo.z()) < n;
   }
   // Bit index of a voxel inside the cube.
-  uint32_t bit_of(const VoxelKey& k) const;
+  uint32_t bit_of(const VoxelKey& k) const {
+    const auto dilate = [this](int c, int axis) {
+      const auto u = static_cast<uint32_t>(c);
+      return ((u & 7u) << (3 * axis)) | ((u >> 3) << (9 + axis * side_bits));
+    };
+    return dilate(k.x() - lo.x(), 0) | dilate(k.y() - lo.y(), 1) | dilate(k.z() - lo.z(), 2);
+  }
 };
 
 // Sets, in `words` (cube.num_words(), not shared with another thread while this runs), the bit of
@@ -62,11 +68,11 @@ void mark_segments_scalar(const RayCube& cube, const Vec3d& from, std::span<cons
 constexpr int kRayTiles = 16;
 constexpr uint32_t kNumRayTiles = 6 * kRayTiles * kRayTiles;
 
-// The tile of a ray's direction d (not necessarily unit length).
-inline uint32_t ray_tile_of(const Vec3d& d) {
-  const Vec3d a = d.cwiseAbs();
-  const int face = a.x() >= a.y() && a.x() >= a.z() ? 0 : (a.y() >= a.z() ? 1 : 2);
-  const double m = 1.0 / a[face], u = d[(face + 1) % 3] * m, v = d[(face + 2) % 3] * m;
+// The tile of a ray's direction d (not necessarily unit length). In float: it only orders rays.
+inline uint32_t ray_tile_of(const Vec3f& d) {
+  const float ax = std::abs(d.x()), ay = std::abs(d.y()), az = std::abs(d.z());
+  const int face = ax >= ay && ax >= az ? 0 : (ay >= az ? 1 : 2);
+  const float m = 1.0f / std::max({ax, ay, az}), u = d[(face + 1) % 3] * m, v = d[(face + 2) % 3] * m;
   const int iu = std::min(kRayTiles - 1, static_cast<int>((u + 1) * (kRayTiles / 2))),
             iv = std::min(kRayTiles - 1, static_cast<int>((v + 1) * (kRayTiles / 2)));
   return static_cast<uint32_t>(((2 * face + (d[face] < 0)) * kRayTiles + iu) * kRayTiles + iv);

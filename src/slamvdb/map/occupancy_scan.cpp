@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <cmath>
 #include <limits>
 #include <span>
 #include <utility>
@@ -13,6 +14,7 @@
 #include "slamvdb/core/error.hpp"
 #include "slamvdb/map/occupancy_grid.hpp"
 #include "slamvdb/map/occupancy_raycast.hpp"
+#include "slamvdb/map/occupancy_rays.hpp"
 
 namespace slamvdb {
 
@@ -171,74 +173,30 @@ void OccupancyGrid::ScanPass::apply_pending(std::vector<VoxelKey> ScanContext::*
   }
 }
 
-// Rays are prepared and the hits outside the cube applied in parallel; rays[j] is where ray j's
-// cleared segment ends (cell units), sort_keys[j] its sort key (kNotCast: dropped).
+// Rays are prepared (occupancy_rays.hpp) and the hits outside the cube applied in parallel.
 void OccupancyGrid::ScanPass::prepare_rays(const std::vector<Vec3f>& points_sensor, Vec3d* rays,
                                            std::vector<uint32_t>& sort_keys) {
-  const double inv_voxel_size = grid.inv_voxel_size_;
-  const double min_range2 = params.min_point_range * params.min_point_range,
-               max_range2 = params.max_point_range * params.max_point_range,
-               clear_range2 = params.max_clearing_range * params.max_clearing_range;
+  const RaySetup setup{.R = R,
+                       .origin = origin,
+                       .inv_voxel_size = grid.inv_voxel_size_,
+                       .min_range = params.min_point_range,
+                       .max_range = params.max_point_range,
+                       .clear_range = params.max_clearing_range,
+                       .from_key = from_key,
+                       .cube = cube};
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, points_sensor.size(), 2048), [&](const tbb::blocked_range<std::size_t>& rr) {
     ScanContext& ctx = contexts.local();
-    ScanIntegrationStats& st = ctx.stats;
     Marks& m = marks.local();
-    uint64_t* const hit_words = m.words.data() + (use_bitmap ? cube.num_words() : 0);
-    for (std::size_t j = rr.begin(); j != rr.end(); ++j) {
-      sort_keys[j] = kNotCast;
-      const Vec3f& p = points_sensor[j];
-      if (!p.allFinite()) {
-        ++st.dropped_nonfinite;
-        continue;
-      }
-      // Squared ranges against squared limits: the square root (and a division) only for the
-      // rays that are cut short.
-      const double range2 = p.cast<double>().squaredNorm();
-      if (range2 == 0.0) {
-        ++st.dropped_no_return;
-        continue;
-      }
-      if (range2 < min_range2) {
-        ++st.dropped_too_close;
-        continue;
-      }
-      const bool hit = range2 <= max_range2;
-      // R p scaled instead of a unit direction times a length.
-      const Vec3d rp = R * p.cast<double>();
-      Vec3d end, to;
-      if (hit && range2 <= clear_range2) {
-        end = to = (origin + rp) * inv_voxel_size;
-      } else {
-        const double range = std::sqrt(range2);
-        const double length = hit ? range : params.max_point_range;
-        end = hit ? Vec3d((origin + rp) * inv_voxel_size) : Vec3d((origin + rp * (length / range)) * inv_voxel_size);
-        to = (origin + rp * (std::min(length, params.max_clearing_range) / range)) * inv_voxel_size;
-      }
-      // Both ends of what the ray touches must be representable: the end point (a hit) and the end
-      // of the cleared segment.
-      if (!in_grid_extent(end) || !in_grid_extent(to)) {
-        ++st.dropped_out_of_extent;
-        continue;
-      }
-      const VoxelKey to_key = key_of_point<VoxelKey>(to, 1.0);
-      rays[j] = to;
-      const auto steps = static_cast<uint32_t>((to_key - from_key).cwiseAbs().sum());
-      sort_keys[j] = ray_tile_of(rp) << 10 | std::min(steps, 1023u);
-      m.lo = m.lo.cwiseMin(to_key), m.hi = m.hi.cwiseMax(to_key);
-      if (!hit) {
-        ++st.beyond_max_range;
-        continue;
-      }
-      const VoxelKey k = to == end ? to_key : key_of_point<VoxelKey>(end, 1.0);
-      if (use_bitmap && cube.contains(k)) {
-        const uint32_t bit = cube.bit_of(k);
-        hit_words[bit >> 6] |= uint64_t{1} << (bit & 63);
-        m.lo = m.lo.cwiseMin(k), m.hi = m.hi.cwiseMax(k);
-      } else if (Block* b = find_block(block_of(k))) {
-        update(*b, k, params.log_odds_hit, ctx);
-      } else {
-        ctx.pending.push_back(k);
-      }
+    PreparedRays out(from_key);
+    slamvdb::prepare_rays(setup, std::span<const Vec3f>(points_sensor.data() + rr.begin(), rr.size()), rays + rr.begin(),
+                          sort_keys.data() + rr.begin(), use_bitmap ? m.words.data() + cube.num_words() : nullptr, out);
+    ScanIntegrationStats& st = ctx.stats;
+    st.dropped_nonfinite += out.nonfinite, st.dropped_no_return += out.no_return, st.dropped_too_close += out.too_close;
+    st.dropped_out_of_extent += out.out_of_extent, st.beyond_max_range += out.beyond_max_range;
+    m.lo = m.lo.cwiseMin(out.lo), m.hi = m.hi.cwiseMax(out.hi);
+    for (const VoxelKey& k : out.hits_outside) {
+      if (Block* b = find_block(block_of(k))) update(*b, k, params.log_odds_hit, ctx);
+      else ctx.pending.push_back(k);
     }
   });
 }
@@ -321,8 +279,9 @@ void OccupancyGrid::ScanPass::update_marked_voxels() {
       }
     }
   });
-  for (Marks& m : marks) {  // where finished lanes wrote (occupancy_raycast.cpp)
+  for (Marks& m : marks) {  // where finished lanes and rays without a hit wrote
     std::fill_n(m.words.data() + hits_at - 8, 8, 0);
+    std::fill_n(m.words.data() + 2 * hits_at - 8, 8, 0);
     m.words.set_clear();
   }
   apply_pending(&ScanContext::pending_hits, hit);
