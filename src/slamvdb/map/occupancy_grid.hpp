@@ -134,7 +134,7 @@ class OccupancyGrid {
   struct ScanPass;
   Block& block_at(const BlockKey& block_key);
   void set_occupied_bit(Block& b, int index, bool occupied);
-  void update_voxel(Block& b, const VoxelKey& key, int index, float delta, ScanContext& ctx);
+  void update_voxel(Block& b, const BlockKey& bk, int index, float delta, ScanContext& ctx);
 
   // Blocks grouped by region (8^3 blocks, 16 m at 0.25 m voxels) for neighbourhood queries.
   using Region = std::vector<std::pair<BlockKey, Block*>>;

@@ -177,7 +177,7 @@ SLAMVDB_AVX2 inline void mark8(uint64_t* words, __m256i idx) {
 // Eight rays in the lanes of AVX2 registers, stepped together until the longest has ended (rays
 // come grouped by direction, so neighbours have similar lengths); lanes whose ray has ended write
 // to their spare bit. The axis choice is a pair of comparisons and masks instead of branches.
-SLAMVDB_AVX2 void mark_segments_avx2(const Origin& o, std::span<const Vec3d> to, uint64_t* words) {
+SLAMVDB_AVX2 void mark_segments_avx2(const Origin& o, const Vec3d* rays, std::span<const uint32_t> to, uint64_t* words) {
   const __m256i mx = _mm256_set1_epi32(static_cast<int>(o.mask[0])), my = _mm256_set1_epi32(static_cast<int>(o.mask[1])),
                 mz = _mm256_set1_epi32(static_cast<int>(o.mask[2]));
   // Lane l's spare: word l of the extra brick.
@@ -186,7 +186,9 @@ SLAMVDB_AVX2 void mark_segments_avx2(const Origin& o, std::span<const Vec3d> to,
   for (std::size_t first = 0; first < to.size(); first += 8) {
     const std::size_t count = std::min<std::size_t>(8, to.size() - first);
     Vec3d group[8];  // the last group padded with its first ray, then given no steps
-    for (std::size_t l = 0; l < 8; ++l) group[l] = to[first + (l < count ? l : 0)];
+    for (std::size_t l = 0; l < 8; ++l) group[l] = rays[to[first + (l < count ? l : 0)]];
+    // The next group's rays are scattered over megabytes: fetched while this one is cast.
+    for (std::size_t l = first + 8; l < std::min(first + 16, to.size()); ++l) __builtin_prefetch(&rays[to[l]]);
     __m256i t[3], d[3], inc[3], left;
     setup8(o, group, t, d, inc, left);
     if (count < 8) left = _mm256_and_si256(left, _mm256_cmpgt_epi32(_mm256_set1_epi32(static_cast<int>(count)), lanes));
@@ -218,40 +220,44 @@ SLAMVDB_AVX2 void mark_segments_avx2(const Origin& o, std::span<const Vec3d> to,
 
 }  // namespace
 
-void mark_segments_scalar(const RayCube& cube, const Vec3d& from, std::span<const Vec3d> to, uint64_t* words) {
+void mark_segments_scalar(const RayCube& cube, const Vec3d& from, const Vec3d* rays, std::span<const uint32_t> to,
+                          uint64_t* words) {
   const Origin o(cube, from);
-  for (const Vec3d& t : to) mark_ray(o, setup(o, t), words);
+  for (const uint32_t i : to) mark_ray(o, setup(o, rays[i]), words);
 }
 
-void mark_segments(const RayCube& cube, const Vec3d& from, std::span<const Vec3d> to, uint64_t* words) {
+void mark_segments(const RayCube& cube, const Vec3d& from, const Vec3d* rays, std::span<const uint32_t> to,
+                   uint64_t* words) {
   static const bool avx2 = __builtin_cpu_supports("avx2");
-  if (avx2) mark_segments_avx2(Origin(cube, from), to, words);
-  else mark_segments_scalar(cube, from, to, words);
+  if (avx2) mark_segments_avx2(Origin(cube, from), rays, to, words);
+  else mark_segments_scalar(cube, from, rays, to, words);
 }
 
 // Rays are cast grouped by direction (cube-map tiles) so that neighbouring rays mark
 // neighbouring words, and by length within a tile: they are cast eight at a time, for as many
-// steps as the longest of the eight needs (two stable counting sorts).
-uint32_t sort_rays_for_casting(const std::vector<uint32_t>& sort_keys, Vec3d* rays) {
+// steps as the longest of the eight needs. Two stable counting sorts of ray indices; the casting
+// reads the rays through them (moving the 24-byte rays cost more than the sorts).
+std::vector<uint32_t> casting_order(const std::vector<uint32_t>& sort_keys) {
   constexpr uint32_t kBuckets = 1024;
   std::vector<uint32_t> first(kBuckets + 1, 0);
   for (const uint32_t k : sort_keys)
     if (k != kNotCast) ++first[(k & (kBuckets - 1)) + 1];
   std::partial_sum(first.begin(), first.end(), first.begin());
   const uint32_t num_cast = first[kBuckets];
-  // Not zeroed (every element is written): these are megabytes.
-  std::unique_ptr<Vec3d[]> by_length(new Vec3d[num_cast]);
-  std::unique_ptr<uint32_t[]> by_length_tile(new uint32_t[num_cast]);
-  std::vector<uint32_t> next(kNumRayTiles + 1, 0);  // counted while the first sort runs
+  std::unique_ptr<uint32_t[]> by_length(new uint32_t[num_cast]);  // not zeroed: every element is written
+  std::vector<uint32_t> next(kNumRayTiles + 1, 0);                // counted during the first sort
   for (uint32_t i = 0; i < sort_keys.size(); ++i)
     if (const uint32_t k = sort_keys[i]; k != kNotCast) {
-      const uint32_t at = first[k & (kBuckets - 1)]++;
-      by_length[at] = rays[i], by_length_tile[at] = k >> 10;
+      by_length[first[k & (kBuckets - 1)]++] = i;
       ++next[(k >> 10) + 1];
     }
   std::partial_sum(next.begin(), next.end(), next.begin());
-  for (uint32_t i = 0; i < num_cast; ++i) rays[next[by_length_tile[i]]++] = by_length[i];
-  return num_cast;
+  std::vector<uint32_t> order(num_cast);
+  for (uint32_t j = 0; j < num_cast; ++j) {
+    const uint32_t i = by_length[j];
+    order[next[sort_keys[i] >> 10]++] = i;
+  }
+  return order;
 }
 
 namespace {

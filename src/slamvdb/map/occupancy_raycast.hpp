@@ -54,14 +54,17 @@ struct RayCube {
 };
 
 // Sets, in `words` (cube.num_words(), not shared with another thread while this runs), the bit of
-// every voxel that the segment from `from` to each of `to` crosses, excluding the voxel of its end:
-// the voxels traverse_voxels(from, to) visits, except where a segment passes within about 1e-5 of a
-// voxel's edge (the crossing parameters are fixed point). `from` and every `to` are in cell units
-// and every segment lies inside the cube. The result does not depend on the CPU.
-void mark_segments(const RayCube& cube, const Vec3d& from, std::span<const Vec3d> to, uint64_t* words);
+// every voxel that the segment from `from` to rays[i], for each i in `to`, crosses, excluding the
+// voxel of its end: the voxels traverse_voxels(from, rays[i]) visits, except where a segment passes
+// within about 1e-5 of a voxel's edge (the crossing parameters are fixed point). `from` and the
+// rays are in cell units and every segment lies inside the cube. The result does not depend on
+// the CPU.
+void mark_segments(const RayCube& cube, const Vec3d& from, const Vec3d* rays, std::span<const uint32_t> to,
+                   uint64_t* words);
 
 // The same without AVX2 (tests compare the two).
-void mark_segments_scalar(const RayCube& cube, const Vec3d& from, std::span<const Vec3d> to, uint64_t* words);
+void mark_segments_scalar(const RayCube& cube, const Vec3d& from, const Vec3d* rays, std::span<const uint32_t> to,
+                          uint64_t* words);
 
 // The order integrate_scan casts rays in. Rays are grouped by direction: the cells of a cube map
 // around the sensor, kRayTiles x kRayTiles per face (about 5.6 degrees at 16).
@@ -82,9 +85,8 @@ inline uint32_t ray_tile_of(const Vec3f& d) {
 // get kNotCast.
 constexpr uint32_t kNotCast = ~0u;
 
-// Rewrites `rays` (one per sort key; their original order is no longer needed) with the rays to
-// cast, in casting order (see the .cpp); returns how many there are.
-uint32_t sort_rays_for_casting(const std::vector<uint32_t>& sort_keys, Vec3d* rays);
+// The indices of the rays to cast (sort keys other than kNotCast), in casting order (see the .cpp).
+std::vector<uint32_t> casting_order(const std::vector<uint32_t>& sort_keys);
 
 // Bitmaps for integrate_scan, handed back clear: allocating and zeroing 4 MB per thread per scan
 // cost more than the update pass, which clears what it reads. Shared by every grid (a pool per grid

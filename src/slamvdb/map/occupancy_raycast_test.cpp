@@ -16,6 +16,12 @@ int popcount(const std::vector<uint64_t>& words) {
   return n;
 }
 
+std::vector<uint32_t> all_indices(std::size_t n) {
+  std::vector<uint32_t> order(n);
+  for (std::size_t i = 0; i < n; ++i) order[i] = static_cast<uint32_t>(i);
+  return order;
+}
+
 // Segments from one origin to random ends within `reach` voxels, some of them from a voxel
 // corner or along an axis (the ties of the DDA).
 struct Fan {
@@ -52,8 +58,9 @@ TEST(MarkSegments, MarksTheVoxelsTraverseVoxelsVisits) {
         const uint32_t bit = f.cube.bit_of(k);
         expected[bit >> 6] |= uint64_t{1} << (bit & 63);
       });
-    mark_segments_scalar(f.cube, from, f.to, scalar.data());
-    mark_segments(f.cube, from, f.to, fast.data());
+    const std::vector<uint32_t> all = all_indices(f.to.size());
+    mark_segments_scalar(f.cube, from, f.to.data(), all, scalar.data());
+    mark_segments(f.cube, from, f.to.data(), all, fast.data());
     // The last brick is where finished lanes write; it is not part of the cube.
     for (auto* v : {&scalar, &fast}) std::fill(v->end() - 8, v->end(), 0);
     EXPECT_GT(popcount(expected), 10000);
@@ -68,9 +75,9 @@ TEST(MarkSegments, AnyCount) {
   const Fan f = make_fan(rng, Vec3d(0.5, 0.5, 0.5), 20, 13);
   for (std::size_t n : {0, 1, 7, 8, 9, 13}) {
     std::vector<uint64_t> scalar(f.cube.num_words()), fast(f.cube.num_words());
-    const std::span<const Vec3d> some(f.to.data(), n);
-    mark_segments_scalar(f.cube, f.from, some, scalar.data());
-    mark_segments(f.cube, f.from, some, fast.data());
+    const std::vector<uint32_t> some = all_indices(n);
+    mark_segments_scalar(f.cube, f.from, f.to.data(), some, scalar.data());
+    mark_segments(f.cube, f.from, f.to.data(), some, fast.data());
     std::fill(fast.end() - 8, fast.end(), 0);
     EXPECT_EQ(fast, scalar) << n;
   }

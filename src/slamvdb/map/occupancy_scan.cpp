@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <bit>
 #include <cmath>
 #include <limits>
 #include <span>
@@ -48,20 +49,21 @@ void OccupancyGrid::set_occupied_bit(Block& b, int i, bool occupied) {
   std::atomic_ref<int>(b.num_occupied).fetch_add(occupied ? 1 : -1, std::memory_order_relaxed);
 }
 
-// Called only by the thread that claimed the voxel's stamp for this scan, so the cell is ours.
-void OccupancyGrid::update_voxel(Block& b, const VoxelKey& key, int i, float delta, ScanContext& ctx) {
+// Called only by the thread that claimed the voxel's stamp for this scan, so the cell is ours. The
+// caller counts the update (a counter in memory incremented per voxel made each update wait for
+// the previous one).
+void OccupancyGrid::update_voxel(Block& b, const BlockKey& bk, int i, float delta, ScanContext& ctx) {
   float& lo = b.cells[i].log_odds;
   const bool was_occupied = !std::isnan(lo) && lo >= params_.occupied_threshold;
   lo = std::clamp(std::isnan(lo) ? delta : lo + delta, params_.clamp_min, params_.clamp_max);
   const bool now_occupied = lo >= params_.occupied_threshold;
-  if (now_occupied != was_occupied) {
+  if (now_occupied != was_occupied) [[unlikely]] {
     set_occupied_bit(b, i, now_occupied);
     if (was_occupied) {
       ++ctx.stats.voxels_freed;
-      ctx.freed.push_back(key);
+      ctx.freed.push_back(voxel_of(bk, i));
     }
   }
-  ++(delta > 0 ? ctx.stats.hit_updates : ctx.stats.miss_updates);
 }
 
 // One scan's state, shared by the phases of integrate_scan.
@@ -99,13 +101,14 @@ struct OccupancyGrid::ScanPass {
     uint32_t& stamp = b.cells[i].stamp;
     if (std::atomic_ref<uint32_t>(stamp).load(std::memory_order_relaxed) == scan) return;
     if (std::atomic_ref<uint32_t>(stamp).exchange(scan, std::memory_order_relaxed) == scan) return;
-    grid.update_voxel(b, key, i, delta, ctx);
+    grid.update_voxel(b, block_of(key), i, delta, ctx);
+    ++(delta > 0 ? ctx.stats.hit_updates : ctx.stats.miss_updates);
   }
   void apply_pending(std::vector<VoxelKey> ScanContext::*list, float delta);
 
   // The phases, in order.
   void prepare_rays(const std::vector<Vec3f>& points_sensor, Vec3d* rays, std::vector<uint32_t>& sort_keys);
-  void cast_rays(std::span<const Vec3d> sorted_rays);
+  void cast_rays(const Vec3d* rays, const std::vector<uint32_t>& order);
   void update_marked_voxels();
   void add_results(ScanIntegrationStats& stats, std::vector<VoxelKey>* freed) const;
 
@@ -201,17 +204,16 @@ void OccupancyGrid::ScanPass::prepare_rays(const std::vector<Vec3f>& points_sens
   });
 }
 
-// Eight rays at a time (sorted_rays: sort_rays_for_casting), marking the bitmaps or, without
-// them, updating the cells.
-void OccupancyGrid::ScanPass::cast_rays(std::span<const Vec3d> sorted_rays) {
-  const auto num_cast = static_cast<uint32_t>(sorted_rays.size());
-  const Vec3d* const ends = sorted_rays.data();
+// Eight rays at a time, in casting order (casting_order), marking the bitmaps or, without them,
+// updating the cells.
+void OccupancyGrid::ScanPass::cast_rays(const Vec3d* rays, const std::vector<uint32_t>& order) {
+  const auto num_cast = static_cast<uint32_t>(order.size());
   const float miss = params.log_odds_miss;
   tbb::parallel_for(tbb::blocked_range<uint32_t>(0, (num_cast + 7) / 8, 64), [&](const tbb::blocked_range<uint32_t>& gr) {
     const uint32_t first = gr.begin() * 8, last = std::min(num_cast, gr.end() * 8);
-    const std::span<const Vec3d> segment(ends + first, last - first);
+    const std::span<const uint32_t> segment(order.data() + first, last - first);
     if (use_bitmap) {
-      mark_segments(cube, from, segment, marks.local().words.data());
+      mark_segments(cube, from, rays, segment, marks.local().words.data());
       return;
     }
     ScanContext& ctx = contexts.local();
@@ -223,7 +225,7 @@ void OccupancyGrid::ScanPass::cast_rays(std::span<const Vec3d> sorted_rays) {
       if (block) update(*block, k, miss, ctx);
       else ctx.pending.push_back(k);
     };
-    for (const Vec3d& to : segment) traverse_voxels(from, to, visit);
+    for (const uint32_t i : segment) traverse_voxels(from, rays[i], visit);
   });
 }
 
@@ -247,37 +249,66 @@ void OccupancyGrid::ScanPass::update_marked_voxels() {
   const int nx = bhi.x() - blo.x() + 1, ny = bhi.y() - blo.y() + 1, nz = bhi.z() - blo.z() + 1;
   const std::size_t hits_at = cube.num_words();
   const float hit = params.log_odds_hit, miss = params.log_odds_miss;
+  // A brick's marks, read (and cleared) one brick ahead of its update so that its cells can be
+  // prefetched: the cells are spread over blocks of 4 kB, and waiting for them was most of the pass.
+  struct MarkedBrick {
+    BlockKey bk;
+    Block* block = nullptr;
+    uint64_t hits[8], misses[8];
+  };
   tbb::parallel_for(tbb::blocked_range<int>(0, ny * nz, 1), [&](const tbb::blocked_range<int>& rows) {
     ScanContext& ctx = contexts.local();
+    std::size_t hit_updates = 0, miss_updates = 0;
+    auto update_brick = [&](const MarkedBrick& b) {
+      // The only update of these voxels in this scan: no other thread has this block.
+      auto apply = [&](int i, float delta, std::vector<VoxelKey>& pending) {
+        if (!b.block) return pending.push_back(voxel_of(b.bk, i));  // counted when applied
+        b.block->cells[i].stamp = scan;
+        grid.update_voxel(*b.block, b.bk, i, delta, ctx);
+      };
+      for (int z = 0; z < 8; ++z) {
+        const uint64_t missed = b.misses[z] & ~b.hits[z];
+        if (b.block) hit_updates += std::popcount(b.hits[z]), miss_updates += std::popcount(missed);
+        for (uint64_t bits = b.hits[z]; bits; bits &= bits - 1)
+          apply((z << 6) | __builtin_ctzll(bits), hit, ctx.pending_hits);  // the voxel's index in its block
+        for (uint64_t bits = missed; bits; bits &= bits - 1)
+          apply((z << 6) | __builtin_ctzll(bits), miss, ctx.pending);
+      }
+    };
+    MarkedBrick bricks[2];
+    int ahead = 0;  // bricks[ahead] is read, not yet updated
+    bool waiting = false;
     for (int row = rows.begin(); row != rows.end(); ++row) {
       const std::size_t row_first = (static_cast<std::size_t>(blo.z() + row / ny) << (2 * cube.side_bits)) |
                                     (static_cast<std::size_t>(blo.y() + row % ny) << cube.side_bits);
       for (int bx = blo.x(); bx < blo.x() + nx; ++bx) {
         const std::size_t brick = row_first | static_cast<std::size_t>(bx);
-        uint64_t hits[8] = {}, misses[8] = {}, any = 0;
+        MarkedBrick& b = bricks[ahead ^ waiting];
+        uint64_t any = 0;
+        for (int z = 0; z < 8; ++z) b.hits[z] = b.misses[z] = 0;
         for (uint64_t* m : maps)
           for (int z = 0; z < 8; ++z) {
-            misses[z] |= std::exchange(m[brick * 8 + z], 0);
-            hits[z] |= std::exchange(m[hits_at + brick * 8 + z], 0);
+            b.misses[z] |= std::exchange(m[brick * 8 + z], 0);
+            b.hits[z] |= std::exchange(m[hits_at + brick * 8 + z], 0);
           }
-        for (int z = 0; z < 8; ++z) any |= misses[z] | hits[z];
+        for (int z = 0; z < 8; ++z) any |= b.misses[z] | b.hits[z];
         if (!any) continue;
-        const BlockKey bk = cube.block_of_brick(brick);
-        Block* const block = find_block(bk);
-        // The only update of these voxels in this scan: no other thread has this block.
-        auto apply = [&](int i, float delta, std::vector<VoxelKey>& pending) {
-          if (!block) return pending.push_back(voxel_of(bk, i));
-          block->cells[i].stamp = scan;
-          grid.update_voxel(*block, voxel_of(bk, i), i, delta, ctx);
-        };
-        for (int z = 0; z < 8; ++z) {
-          for (uint64_t bits = hits[z]; bits; bits &= bits - 1)
-            apply((z << 6) | __builtin_ctzll(bits), hit, ctx.pending_hits);  // the voxel's index in its block
-          for (uint64_t bits = misses[z] & ~hits[z]; bits; bits &= bits - 1)
-            apply((z << 6) | __builtin_ctzll(bits), miss, ctx.pending);
-        }
+        b.bk = cube.block_of_brick(brick);
+        b.block = find_block(b.bk);
+        if (b.block)
+          for (int z = 0; z < 8; ++z) {
+            // One bit per eight voxels (a cache line of cells) with any mark.
+            uint64_t lines = b.misses[z] | b.hits[z];
+            lines |= lines >> 4, lines |= lines >> 2, lines |= lines >> 1;
+            for (lines &= 0x0101010101010101u; lines; lines &= lines - 1)
+              __builtin_prefetch(&b.block->cells[(z << 6) | __builtin_ctzll(lines)], 1);
+          }
+        if (waiting) update_brick(bricks[ahead]), ahead ^= 1;
+        waiting = true;
       }
     }
+    if (waiting) update_brick(bricks[ahead]);
+    ctx.stats.hit_updates += hit_updates, ctx.stats.miss_updates += miss_updates;
   });
   for (Marks& m : marks) {  // where finished lanes and rays without a hit wrote
     std::fill_n(m.words.data() + hits_at - 8, 8, 0);
@@ -310,8 +341,7 @@ ScanIntegrationStats OccupancyGrid::integrate_scan(const std::vector<Vec3f>& poi
   pass.prepare_rays(points_sensor, rays.get(), sort_keys);
   pass.apply_pending(&ScanContext::pending, params_.log_odds_hit);
 
-  const uint32_t num_cast = sort_rays_for_casting(sort_keys, rays.get());
-  pass.cast_rays(std::span<const Vec3d>(rays.get(), num_cast));
+  pass.cast_rays(rays.get(), casting_order(sort_keys));
   if (pass.use_bitmap) pass.update_marked_voxels();
   pass.apply_pending(&ScanContext::pending, params_.log_odds_miss);
 
