@@ -314,7 +314,8 @@ void add(CLI::App& root) {
       ->check(finite_range(0, 1e7));
   add_colour_basis_option(cmd, opt->colour_basis);
   cmd->parse_complete_callback([opt] {
-    check_map_options(opt->pipeline, opt->features, opt->feature_size, opt->precision, opt->distortion, opt->output);
+    check_map_options(opt->pipeline, opt->features, opt->feature_size, opt->sim_feature_precision, opt->precision,
+                      opt->distortion, opt->output);
     check_colour_basis_option(opt->colour_basis, opt->pipeline.map.semantic.dim);
     if (opt->resume && opt->no_checkpoints) usage_error("--resume continues a map file written submap by submap: it "
                                                         "cannot go with --no-checkpoints");

@@ -35,8 +35,11 @@ inline std::array<double, 5> parse_distortion_option(const std::string& text) {
   return d;
 }
 
+// sim_feature_precision: the simulated encoder's output values, "fp32" or "fp16" (their size bounds
+// a feature map's bytes).
 inline void check_map_options(const PipelineOptions& p, const std::string& features, const std::string& feature_size,
-                              const std::string& precision, const std::string& distortion, const std::string& output) {
+                              const std::string& sim_feature_precision, const std::string& precision,
+                              const std::string& distortion, const std::string& output) {
   const auto& occ = p.map.occupancy;
   if (!(occ.min_point_range < occ.max_point_range))
     usage_error(fmt::format("--min-range {} must be below --max-range {}", occ.min_point_range, occ.max_point_range));
@@ -61,7 +64,7 @@ inline void check_map_options(const PipelineOptions& p, const std::string& featu
     const int w = std::stoi(m[1]), h = std::stoi(m[2]);
     if (w < 1 || h < 1 || w > bounds::kMaxFeatureSide || h > bounds::kMaxFeatureSide)
       usage_error(fmt::format("--feature-size {}: each side must be in [1, {}]", feature_size, bounds::kMaxFeatureSide));
-    const double bytes = 4.0 * w * h * p.map.semantic.dim;
+    const double bytes = (sim_feature_precision == "fp16" ? 2.0 : 4.0) * w * h * p.map.semantic.dim;
     if (bytes > bounds::kMaxFeatureMapBytes)
       usage_error(fmt::format("--feature-size {} with --dim {} makes {:.0f} MB feature maps; at most {:.0f} MB",
                               feature_size, p.map.semantic.dim, bytes / 1e6, bounds::kMaxFeatureMapBytes / 1e6));

@@ -35,8 +35,8 @@ TEST(OptionChecks, DistortionNeedsFiveFiniteNumbers) {
 
 TEST(OptionChecks, MapOptionCombinationsAreBounded) {
   PipelineOptions p;
-  const auto run = [&](const std::string& feature_size = "192x128") {
-    check_map_options(p, "simulated", feature_size, "fp16", "", "/tmp/map.svdb");
+  const auto run = [&](const std::string& feature_size = "192x128", const std::string& sim_precision = "fp32") {
+    check_map_options(p, "simulated", feature_size, sim_precision, "fp16", "", "/tmp/map.svdb");
   };
   EXPECT_NO_THROW(run());
   p.map.occupancy.voxel_size = 0.01;  // 25 m clearing = 2500 voxels per ray: allowed
@@ -50,7 +50,9 @@ TEST(OptionChecks, MapOptionCombinationsAreBounded) {
   EXPECT_THROW(run("0x128"), CLI::ValidationError);
   EXPECT_THROW(run("5000x10"), CLI::ValidationError);
   EXPECT_THROW(run("1920x1200"), CLI::ValidationError);  // 4.7 GB of 512-d features
-  EXPECT_THROW(check_map_options(p, "simulated", "192x128", "fp16", "", "/no/such/dir/map.svdb"), Error);
+  EXPECT_THROW(run("1024x768"), CLI::ValidationError);    // 1.6 GB in fp32,
+  EXPECT_NO_THROW(run("1024x768", "fp16"));               // 0.8 GB in fp16
+  EXPECT_THROW(check_map_options(p, "simulated", "192x128", "fp32", "fp16", "", "/no/such/dir/map.svdb"), Error);
 }
 
 TEST(OptionChecks, MemoryEstimateFollowsTheMeasurement) {
