@@ -51,6 +51,9 @@ void run(Options opt, const std::string& config) {
   for (const auto& note : seq.notes) fmt::print("  note: {}\n", escape_control(note));
   if (seq.scans.size() < 3) throw Error(fmt::format("{}: {} scans; slam needs at least 3", opt.dataset, seq.scans.size()));
   const auto source = make_feature_source(opt.features, seq);
+  if (opt.tracking.simulated_drift_deg_per_100m != 0.0)
+    spdlog::warn("odometry drift is SIMULATED: {} degrees of heading per 100 m are added to the odometry",
+                 opt.tracking.simulated_drift_deg_per_100m);
 
   // Odometry, loop closure and mapping in one pass: each scan's pose goes to the mapper as soon as
   // the scan is registered; accepted loops move (and merge) the submaps while mapping goes on.
@@ -70,16 +73,22 @@ void run(Options opt, const std::string& config) {
   const std::vector<Pose> odometry_poses = run.odometry_poses(), corrected_poses = run.corrected_poses();
   const LoopCorrectionReport& corrections = run.corrections;
   MapInfo info = map.info();
-  info.source = "slam (own odometry" + std::string(tracked.loop_closer ? " + loop closure" : "") + "): " +
-                seq.root.string();
+  info.source = "slam (own odometry" + std::string(tracked.loop_closer ? " + loop closure" : "") +
+                (opt.tracking.simulated_drift_deg_per_100m != 0.0
+                     ? fmt::format(", SIMULATED drift {} deg/100 m", opt.tracking.simulated_drift_deg_per_100m)
+                     : "") +
+                "): " + seq.root.string();
   info.config = config;
   map.set_info(info);
   record_colour_basis(map, opt.colour_basis);
   save_map(opt.output, map);
   if (!opt.poses_out.empty()) write_trajectory(opt.poses_out, tracked.stamps, corrected_poses, opt.format);
 
-  fmt::print("slam of {}: {} scans, {:.1f} m, tracking {:.1f} scans/s\n", opt.dataset, tracked.stamps.size(),
-             tracked.distance, tracked.stamps.size() / std::max(tracked.busy_seconds, 1e-9));
+  fmt::print("slam of {}: {} scans, {:.1f} m, tracking {:.1f} scans/s{}\n", opt.dataset, tracked.stamps.size(),
+             tracked.distance, tracked.stamps.size() / std::max(tracked.busy_seconds, 1e-9),
+             opt.tracking.simulated_drift_deg_per_100m != 0.0
+                 ? fmt::format(" (SIMULATED odometry drift {} deg / 100 m)", opt.tracking.simulated_drift_deg_per_100m)
+                 : "");
   fmt::print("  registered   {} ({} after a wide retry)\n", tracked.registered(), tracked.recovered);
   for (const auto& [reason, n] : tracked.failures) fmt::print("  not registered ({}): {}\n", reason, n);
   if (tracked.loop_closer) {
@@ -118,6 +127,11 @@ void add(CLI::App& root) {
   add_feature_options(cmd, opt->features, false);
   cmd->add_flag("--no-loop-closure", [opt](std::int64_t) { opt->tracking.loop_closure = false; },
                 "Odometry only (no submap moves or merges)");
+  cmd->add_option("--sim-odometry-drift", opt->tracking.simulated_drift_deg_per_100m,
+                  "SIMULATED odometry drift: degrees of heading error added per 100 m travelled, to see loop closure "
+                  "correct a drive whose odometry hardly drifts")
+      ->capture_default_str()
+      ->check(finite_range(-90, 90));
   cmd->add_option("--keyframe-distance", opt->tracking.loops.keyframe_distance, "Metres of path between keyframes")
       ->capture_default_str()
       ->check(finite_range(0.1, 100));

@@ -2,7 +2,10 @@
 
 #include <fmt/format.h>
 
+#include <Eigen/Geometry>
 #include <chrono>
+#include <cmath>
+#include <numbers>
 
 #include "slamvdb/core/error.hpp"
 
@@ -22,6 +25,9 @@ Pose TrackingResult::corrected(std::size_t i) const { return correction_at(stamp
 
 namespace {
 const TrackingOptions& validated(const TrackingOptions& options) {
+  if (!std::isfinite(options.simulated_drift_deg_per_100m) || std::abs(options.simulated_drift_deg_per_100m) > 90)
+    throw Error(fmt::format("simulated odometry drift {} degrees per 100 m: expected a finite value in [-90, 90]",
+                            options.simulated_drift_deg_per_100m));
   options.odometry.validate();
   if (options.loop_closure) options.loops.validate();
   return options;
@@ -35,7 +41,16 @@ LidarTracker::LidarTracker(const TrackingOptions& options) : options_(validated(
 Pose LidarTracker::track(double stamp, const std::vector<Vec3f>& points, const std::vector<float>* point_times,
                          const std::string& name) {
   const auto start = std::chrono::steady_clock::now();
-  const localization::OdometryResult r = odometry_.register_scan(stamp, points, point_times);
+  localization::OdometryResult r = odometry_.register_scan(stamp, points, point_times);
+  if (options_.simulated_drift_deg_per_100m != 0.0) {
+    // The motion since the last scan, turned in proportion to its length, continues the drifted
+    // trajectory (the odometry itself keeps tracking in its own frame).
+    Pose motion = last_odometry_.inverse() * r.T_odom_sensor;
+    last_odometry_ = r.T_odom_sensor;
+    const double yaw = options_.simulated_drift_deg_per_100m * std::numbers::pi / 180.0 / 100.0 * motion.translation().norm();
+    motion.linear() = motion.linear() * Eigen::AngleAxisd(yaw, Vec3d::UnitZ()).toRotationMatrix();
+    r.T_odom_sensor = result_.T_odom_sensor.empty() ? r.T_odom_sensor : result_.T_odom_sensor.back() * motion;
+  }
   if (result_.loop_closer) result_.loop_closer->add_scan(stamp, r.T_odom_sensor, points, r.predicted_only);
   result_.busy_seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   result_.non_finite_points += r.non_finite_points;

@@ -21,6 +21,11 @@ struct TrackingOptions {
   bool loop_closure = true;
   localization::LoopClosureConfig loops;
   int max_consecutive_failures = 10;
+  // SIMULATED odometry drift, degrees of heading error per 100 m travelled (0: none): each
+  // registered motion is turned by this much about the sensor's z axis before the loop closer and
+  // the mapper see it, as a biased gyro would. For exercising loop closure on simulated drives,
+  // whose odometry drifts only centimetres.
+  double simulated_drift_deg_per_100m = 0.0;
 };
 
 struct TrackingResult {
@@ -57,6 +62,7 @@ class LidarTracker {
   TrackingOptions options_;
   localization::LidarOdometry odometry_;
   TrackingResult result_;
+  Pose last_odometry_ = Pose::Identity();  // the odometry's own last pose (before simulated drift)
   int consecutive_failures_ = 0;
 };
 

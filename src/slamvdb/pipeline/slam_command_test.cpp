@@ -3,6 +3,8 @@
 // on the ground-truth poses, and bad input is refused before any work.
 #include <gtest/gtest.h>
 
+#include <cmath>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <string>
@@ -21,17 +23,22 @@ namespace fs = std::filesystem;
 using testing::run_command;
 using testing::shell_quote;
 
-TEST(SlamCommand, MapOnOwnPosesAgreesWithTheGroundTruthMap) {
-  testing::TempDir tmp;
-  const fs::path seq = tmp.path / "seq";
+// A simulated 100 m drive, revisited after 75 m: a loop to close.
+void write_drive_with_a_loop(const fs::path& dir) {
   synth::SynthConfig config;
   config.seed = 2;
   config.length_m = 100.0;
-  config.min_loop_m = 70.0;  // revisited after 75 m: a loop to close
+  config.min_loop_m = 70.0;
   config.image_width = 160;
   config.image_height = 100;
   config.lidar.columns = testing::test_size(1024, 512);  // slamvdb/testing/test_scale.hpp
-  synth::write_synthetic_sequence(config, seq, true);
+  synth::write_synthetic_sequence(config, dir, true);
+}
+
+TEST(SlamCommand, MapOnOwnPosesAgreesWithTheGroundTruthMap) {
+  testing::TempDir tmp;
+  const fs::path seq = tmp.path / "seq";
+  write_drive_with_a_loop(seq);
 
   const std::string cli = shell_quote(SLAMVDB_CLI_PATH);
   const std::string common = " --feature-size 48x32 --dim 16 --submap-length 20 ";
@@ -61,6 +68,55 @@ TEST(SlamCommand, MapOnOwnPosesAgreesWithTheGroundTruthMap) {
   EXPECT_GT(iou, 0.9);
 }
 
+// The number printed right after `label` in `text` (NaN when absent).
+double number_after(const std::string& text, const std::string& label) {
+  const std::size_t at = text.find(label);
+  return at == std::string::npos ? std::nan("") : std::atof(text.c_str() + at + label.size());
+}
+
+// Loop closure while mapping, against an odometry that drifts: the drive above with a SIMULATED
+// heading drift of 4 degrees per 100 m. Without loop closure the revisited place is mapped twice,
+// apart; with it the submaps are moved back while mapping goes on.
+TEST(SlamCommand, CorrectionsWhileMappingRemoveSimulatedDrift) {
+  testing::TempDir tmp;
+  const fs::path seq = tmp.path / "seq";
+  write_drive_with_a_loop(seq);
+
+  const std::string cli = shell_quote(SLAMVDB_CLI_PATH);
+  const std::string common = " --feature-size 48x32 --dim 16 --submap-length 20 ";
+  auto slam = [&](const std::string& name, const std::string& extra) {
+    const fs::path out = tmp.path / name;
+    const auto r = run_command(cli + " slam " + shell_quote(seq.string()) + " -o " + shell_quote(out.string()) +
+                                   common + "--sim-odometry-drift 4 " + extra + " 2>&1", 300);
+    EXPECT_EQ(r.exit_code, 0) << r.output;
+    return std::make_pair(load_map(out), r.output);
+  };
+  const auto [closed, closed_output] = slam("closed.svdb", "");
+  const auto [drifted, drifted_output] = slam("drifted.svdb", "--no-loop-closure");
+  const fs::path truth_path = tmp.path / "truth.svdb";
+  const auto truth_run = run_command(cli + " map " + shell_quote(seq.string()) + " -o " +
+                                     shell_quote(truth_path.string()) + common + " 2>&1", 300);
+  ASSERT_EQ(truth_run.exit_code, 0) << truth_run.output;
+  const SemanticMap truth = load_map(truth_path);
+  std::cout << closed_output.substr(closed_output.find("slam of"));
+
+  EXPECT_NE(closed_output.find("SIMULATED"), std::string::npos);
+  EXPECT_NE(closed.info().source.find("SIMULATED drift"), std::string::npos);
+  // The drift is large (0.27 m ATE after alignment, measured), loop closure takes most of it away.
+  const double ate_odometry = number_after(closed_output, "ATE rmse "),
+               ate_closed = number_after(closed_output, "m with odometry only, ");
+  EXPECT_GT(ate_odometry, 0.15) << closed_output;
+  EXPECT_LT(ate_closed, 0.3 * ate_odometry) << closed_output;
+  // Submaps were moved by about that much while mapping went on.
+  EXPECT_GT(number_after(closed_output, "largest shift "), 0.3) << closed_output;
+  // And the map shows it: the drifted map's second pass does not lie on the first.
+  const double iou_closed = occupied_iou(closed, truth, 1), iou_drifted = occupied_iou(drifted, truth, 1);
+  std::cout << "occupied-voxel IoU within one voxel with the ground-truth map: " << iou_closed << " with loop closure, "
+            << iou_drifted << " without\n";
+  EXPECT_GT(iou_closed, 0.85);
+  EXPECT_GT(iou_closed, iou_drifted + 0.1);
+}
+
 TEST(SlamCommand, RefusesBadInputBeforeWork) {
   testing::TempDir tmp;
   const std::string cli = shell_quote(SLAMVDB_CLI_PATH);
@@ -75,6 +131,9 @@ TEST(SlamCommand, RefusesBadInputBeforeWork) {
   const auto bad = run_command(cli + " slam " + shell_quote((tmp.path / "empty").string()) + " -o " +
                                shell_quote((tmp.path / "m.svdb").string()) + " --keyframe-distance nan 2>&1");
   EXPECT_EQ(bad.exit_code, 2) << bad.output;
+  const auto bad_drift = run_command(cli + " slam " + shell_quote((tmp.path / "empty").string()) + " -o " +
+                                     shell_quote((tmp.path / "m.svdb").string()) + " --sim-odometry-drift inf 2>&1");
+  EXPECT_EQ(bad_drift.exit_code, 2) << bad_drift.output;
 }
 
 }  // namespace
