@@ -23,30 +23,34 @@ namespace fs = std::filesystem;
 using testing::run_command;
 using testing::shell_quote;
 
-// A simulated 100 m drive, revisited after 75 m: a loop to close.
-void write_drive_with_a_loop(const fs::path& dir) {
-  synth::SynthConfig config;
-  config.seed = 2;
-  config.length_m = 100.0;
-  config.min_loop_m = 70.0;
-  config.image_width = 160;
-  config.image_height = 100;
-  config.lidar.columns = testing::test_size(1024, 512);  // slamvdb/testing/test_scale.hpp
-  synth::write_synthetic_sequence(config, dir, true);
-}
+// A simulated 100 m drive, revisited after 75 m (a loop to close), in a temporary directory, and
+// the options both tests map it with.
+struct LoopDrive {
+  testing::TempDir tmp;
+  fs::path seq = tmp.path / "seq";
+  std::string cli = shell_quote(SLAMVDB_CLI_PATH);
+  std::string common = " --feature-size 48x32 --dim 16 --submap-length 20 ";
+  LoopDrive() {
+    synth::SynthConfig config;
+    config.seed = 2;
+    config.length_m = 100.0;
+    config.min_loop_m = 70.0;
+    config.image_width = 160;
+    config.image_height = 100;
+    config.lidar.columns = testing::test_size(1024, 512);  // slamvdb/testing/test_scale.hpp
+    synth::write_synthetic_sequence(config, seq, true);
+  }
+};
 
 TEST(SlamCommand, MapOnOwnPosesAgreesWithTheGroundTruthMap) {
-  testing::TempDir tmp;
-  const fs::path seq = tmp.path / "seq";
-  write_drive_with_a_loop(seq);
-
-  const std::string cli = shell_quote(SLAMVDB_CLI_PATH);
-  const std::string common = " --feature-size 48x32 --dim 16 --submap-length 20 ";
+  const LoopDrive drive;
+  const testing::TempDir& tmp = drive.tmp;
+  const std::string &seq_dir = drive.seq.string(), &cli = drive.cli, &common = drive.common;
   const fs::path slam_map = tmp.path / "slam.svdb", truth_map = tmp.path / "truth.svdb", poses = tmp.path / "p.txt";
-  const auto slam = run_command(cli + " slam " + shell_quote(seq.string()) + " -o " + shell_quote(slam_map.string()) +
+  const auto slam = run_command(cli + " slam " + shell_quote(seq_dir) + " -o " + shell_quote(slam_map.string()) +
                                 " --poses-out " + shell_quote(poses.string()) + common + " 2>&1", 300);
   ASSERT_EQ(slam.exit_code, 0) << slam.output;
-  const auto truth = run_command(cli + " map " + shell_quote(seq.string()) + " -o " + shell_quote(truth_map.string()) +
+  const auto truth = run_command(cli + " map " + shell_quote(seq_dir) + " -o " + shell_quote(truth_map.string()) +
                                  common + " 2>&1", 300);
   ASSERT_EQ(truth.exit_code, 0) << truth.output;
   std::cout << slam.output.substr(slam.output.find("slam of"));
@@ -78,15 +82,12 @@ double number_after(const std::string& text, const std::string& label) {
 // heading drift of 4 degrees per 100 m. Without loop closure the revisited place is mapped twice,
 // apart; with it the submaps are moved back while mapping goes on.
 TEST(SlamCommand, CorrectionsWhileMappingRemoveSimulatedDrift) {
-  testing::TempDir tmp;
-  const fs::path seq = tmp.path / "seq";
-  write_drive_with_a_loop(seq);
-
-  const std::string cli = shell_quote(SLAMVDB_CLI_PATH);
-  const std::string common = " --feature-size 48x32 --dim 16 --submap-length 20 ";
+  const LoopDrive drive;
+  const testing::TempDir& tmp = drive.tmp;
+  const std::string &seq_dir = drive.seq.string(), &cli = drive.cli, &common = drive.common;
   auto slam = [&](const std::string& name, const std::string& extra) {
     const fs::path out = tmp.path / name;
-    const auto r = run_command(cli + " slam " + shell_quote(seq.string()) + " -o " + shell_quote(out.string()) +
+    const auto r = run_command(cli + " slam " + shell_quote(seq_dir) + " -o " + shell_quote(out.string()) +
                                    common + "--sim-odometry-drift 4 " + extra + " 2>&1", 300);
     EXPECT_EQ(r.exit_code, 0) << r.output;
     return std::make_pair(load_map(out), r.output);
@@ -94,7 +95,7 @@ TEST(SlamCommand, CorrectionsWhileMappingRemoveSimulatedDrift) {
   const auto [closed, closed_output] = slam("closed.svdb", "");
   const auto [drifted, drifted_output] = slam("drifted.svdb", "--no-loop-closure");
   const fs::path truth_path = tmp.path / "truth.svdb";
-  const auto truth_run = run_command(cli + " map " + shell_quote(seq.string()) + " -o " +
+  const auto truth_run = run_command(cli + " map " + shell_quote(seq_dir) + " -o " +
                                      shell_quote(truth_path.string()) + common + " 2>&1", 300);
   ASSERT_EQ(truth_run.exit_code, 0) << truth_run.output;
   const SemanticMap truth = load_map(truth_path);
