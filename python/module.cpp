@@ -131,12 +131,25 @@ py::dict at_points(const SemanticMap& map, const F64& points) {
 }
 
 // Fuses an H x W x C feature map (pixel-major, as the encoders produce) seen by a pinhole camera.
-py::dict fuse_features(SemanticMap& map, double stamp, const F32& features, const py::dict& camera,
+// float16 arrays stay fp16 (fusion reads them directly, as from a half-precision network); any
+// other dtype is converted to float32.
+py::dict fuse_features(SemanticMap& map, double stamp, const py::array& features, const py::dict& camera,
                        const F64& T_world_camera) {
   if (features.ndim() != 3) throw Error("features are an H x W x C array");
-  FeatureMap f(static_cast<int>(features.shape(2)), static_cast<int>(features.shape(0)),
-               static_cast<int>(features.shape(1)));
-  std::copy_n(features.data(), f.size(), f.values().begin());
+  const int dim = static_cast<int>(features.shape(2)), height = static_cast<int>(features.shape(0)),
+            width = static_cast<int>(features.shape(1));
+  FeatureMap f;
+  if (features.dtype().is(py::dtype("float16"))) {
+    using Bits = py::array_t<uint16_t, py::array::c_style | py::array::forcecast>;
+    const Bits bits = Bits::ensure(features.attr("view")("uint16"));  // the same bits, contiguous
+    f.reset(dim, height, width, EmbeddingPrecision::kFloat16);
+    std::copy_n(bits.data(), f.size(), f.half_values().begin());
+  } else {
+    const F32 values = F32::ensure(features);
+    if (!values) throw Error("features: expected a float array");
+    f.reset(dim, height, width);
+    std::copy_n(values.data(), f.size(), f.values().begin());
+  }
   CameraModel cam;
   cam.width = f.width(), cam.height = f.height();
   cam.fx = camera["fx"].cast<double>(), cam.fy = camera["fy"].cast<double>();
@@ -150,6 +163,7 @@ py::dict fuse_features(SemanticMap& map, double stamp, const F32& features, cons
   py::dict d;
   d["fused"] = active, d["voxels"] = stats.fused_voxels, d["pixels_used"] = stats.pixels_used;
   d["pixels_nonfinite"] = stats.pixels_nonfinite, d["pixels_zero"] = stats.pixels_zero;
+  d["feature_precision"] = f.precision() == EmbeddingPrecision::kFloat16 ? "fp16" : "fp32";  // as fused
   return d;
 }
 

@@ -21,8 +21,8 @@ def pose(x):
     return T
 
 
-def build(tmp_path):
-    """A small map: two scans, and a feature map that says 'grass' below the wall's height."""
+def build(tmp_path, features=None):
+    """A small map: two scans, and a feature map (by default one that says class 3 everywhere)."""
     m = slamvdb.Map(voxel_size=0.25, dim=16, precision="fp16", submap_length=0, model_id="test-space")
     world = ground_and_wall()
     for i, x in enumerate([0.0, 0.5]):
@@ -34,10 +34,12 @@ def build(tmp_path):
     T_world_camera = np.eye(4)
     T_world_camera[:3, :3] = np.array([[0, 0, 1], [-1, 0, 0], [0, -1, 0]], dtype=float)
     T_world_camera[:3, 3] = [-6.0, 0.0, 1.5]
-    features = np.zeros((48, 64, 16), dtype=np.float32)
-    features[:, :, 3] = 1.0  # every pixel looks like class 3
+    if features is None:
+        features = np.zeros((48, 64, 16), dtype=np.float32)
+        features[:, :, 3] = 1.0  # every pixel looks like class 3
     fused = m.fuse_features(1.0, features, {"fx": 40.0, "fy": 40.0, "cx": 31.5, "cy": 23.5}, T_world_camera)
     assert fused["fused"] and fused["voxels"] > 50
+    assert fused["feature_precision"] == ("fp16" if features.dtype == np.float16 else "fp32")
     m.finish()
     return m
 
@@ -68,6 +70,22 @@ def test_build_query_save_load(tmp_path):
     p2, e2, c2 = loaded.semantic_voxels()
     assert np.array_equal(p2, positions) and np.array_equal(c2, counts)
     assert np.allclose(e2, embeddings)
+
+
+def test_float16_features_fuse_as_their_float32_values(tmp_path):
+    """A float16 array is fused in fp16 (not widened first) and gives the map its float32 values give."""
+    rng = np.random.default_rng(4)
+    half = (rng.random((48, 64, 16)) - 0.25).astype(np.float16)
+    a, b = build(tmp_path, half), build(tmp_path, half.astype(np.float32))
+    pa, ea, ca = a.semantic_voxels()
+    pb, eb, cb = b.semantic_voxels()
+    assert len(pa) > 50
+    assert np.array_equal(pa, pb) and np.array_equal(ea, eb) and np.array_equal(ca, cb)
+    # Strided float16 (not contiguous) is read correctly too.
+    wide = np.zeros((48, 64, 32), dtype=np.float16)
+    wide[:, :, ::2] = half
+    c = build(tmp_path, wide[:, :, ::2])
+    assert np.array_equal(c.semantic_voxels()[1], ea)
 
 
 def test_errors_are_python_exceptions(tmp_path):
