@@ -9,23 +9,12 @@
 #include "slamvdb/core/error.hpp"
 #include "slamvdb/core/half.hpp"
 #include "slamvdb/fusion/projective_fusion.hpp"
+#include "slamvdb/testing/fusion_fixtures.hpp"
 
 namespace slamvdb {
 namespace {
 
-CameraModel fp16_test_camera() {
-  CameraModel c;
-  c.width = 96, c.height = 64, c.fx = 75, c.fy = 75, c.cx = 47.5, c.cy = 31.5;
-  return c;
-}
-
-MapParams fp16_test_params(int dim, EmbeddingPrecision storage) {
-  MapParams p;
-  p.occupancy.voxel_size = 0.25;
-  p.semantic.dim = dim;
-  p.semantic.precision = storage;
-  return p;
-}
+CameraModel fp16_test_camera() { return testing::centred_camera(96, 64); }
 
 // A bumpy wall in front of the camera and a few voxels before it: many voxels, partial occlusion.
 std::vector<Vec3d> fp16_test_scene() {
@@ -37,7 +26,7 @@ std::vector<Vec3d> fp16_test_scene() {
 }
 
 VoxelMap fp16_test_map(int dim, EmbeddingPrecision storage) {
-  VoxelMap map(fp16_test_params(dim, storage));
+  VoxelMap map(testing::fusion_map_params(dim, storage));
   for (const Vec3d& p : fp16_test_scene()) map.occupancy().set_log_odds(map.occupancy().key_of(p), 2.0f);
   return map;
 }

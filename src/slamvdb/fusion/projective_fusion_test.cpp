@@ -5,23 +5,13 @@
 #include <opencv2/calib3d.hpp>
 
 #include "slamvdb/core/error.hpp"
+#include "slamvdb/testing/fusion_fixtures.hpp"
 
 namespace slamvdb {
 namespace {
 
-CameraModel feature_camera() {
-  CameraModel c;
-  c.width = 192, c.height = 128, c.fx = 150, c.fy = 150, c.cx = 95.5, c.cy = 63.5;
-  return c;
-}
-
-MapParams params(int dim) {
-  MapParams p;
-  p.occupancy.voxel_size = 0.25;
-  p.semantic.dim = dim;
-  p.semantic.precision = EmbeddingPrecision::kFloat32;
-  return p;
-}
+CameraModel feature_camera() { return testing::centred_camera(192, 128); }
+MapParams params(int dim) { return testing::fusion_map_params(dim); }
 
 // Every pixel's feature is (x, y, 1): the fused value of a voxel is then the mean pixel position.
 FeatureMap pixel_coordinate_features(const CameraModel& c) {
