@@ -33,6 +33,10 @@ PACKAGES=(
   libceres-dev libnanoflann-dev liblzf-dev  # localization: pose graph, ScanContext k-d tree, PCD binary_compressed
   clang libclang-rt-14-dev           # sanitizer build (ASan + UBSan) and libFuzzer harnesses (scripts/fuzz.sh)
   chromium                           # the HTML viewer's test (headless, driven by playwright-core)
+  liblz4-dev libzstd-dev libbz2-dev  # recordings: lz4, zstd and bz2 compressed chunks (MCAP, ROS 1 bags, rosbag2)
+  python3-rosbag python3-sensor-msgs python3-geometry-msgs python3-nav-msgs python3-tf2-msgs
+                                     # tests: ROS 1 bags written by ROS's own writer (not by our reader's code)
+  zstd lz4                           # reference decompressors for the recording benchmarks
 )
 # Node.js and npm (three.js, esbuild and playwright-core for the HTML viewer, from the npm
 # registry): Debian's, unless the machine already has them.
