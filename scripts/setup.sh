@@ -54,11 +54,14 @@ if [ "${SLAMVDB_SKIP_APT:-0}" != "1" ]; then
   fi
 fi
 
-# The viewer's npm packages, exactly as locked (viewer/package-lock.json).
-if [ ! -f viewer/node_modules/.package-lock.json ] || ! cmp -s viewer/package-lock.json viewer/node_modules/.slamvdb-lock; then
-  npm ci --prefix viewer --no-audit --no-fund --loglevel=error
-  cp viewer/package-lock.json viewer/node_modules/.slamvdb-lock
-fi
+# npm packages, exactly as locked: the viewer's (three.js, esbuild, playwright-core) and the
+# recording tests' independent writers (MCAP, CDR, ROS 1 serialization).
+for dir in viewer tests/recording_fixtures; do
+  if [ ! -f $dir/node_modules/.package-lock.json ] || ! cmp -s $dir/package-lock.json $dir/node_modules/.slamvdb-lock; then
+    npm ci --prefix $dir --no-audit --no-fund --loglevel=error
+    cp $dir/package-lock.json $dir/node_modules/.slamvdb-lock
+  fi
+done
 
 cmake -S . -B build -G Ninja -DCMAKE_BUILD_TYPE=Release -DCMAKE_UNITY_BUILD="${SLAMVDB_UNITY:-ON}" \
   -DCMAKE_UNITY_BUILD_BATCH_SIZE=16
