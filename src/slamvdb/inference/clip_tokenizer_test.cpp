@@ -243,7 +243,7 @@ TEST(ClipTokenizer, CliPrintsIds) {
 // ~200 generated texts (vocabulary words, punctuation, digits, emoji, accents, CJK, entities,
 // odd whitespace and case) compared with the Python oracle, when python3 has `regex`.
 TEST(ClipTokenizer, MatchesPythonOracleOnGeneratedTexts) {
-  if (std::system(SLAMVDB_PYTHON " -c 'import regex' >/dev/null 2>&1") != 0)
+  if (std::system((std::string(SLAMVDB_PYTHON) + " -c 'import regex' >/dev/null 2>&1").c_str()) != 0)
     GTEST_SKIP() << "python3 with the regex module is not available";
   const std::vector<std::string> pieces = {
       ",", ".", "!", "?", "...", "-", "'", "\"", "(", ")", "&", "/", "#", "@", ":", ";", "'s", "'LL", "'ſ", "''",

@@ -163,7 +163,7 @@ TEST(Npy, BadFilesAreErrorsThatSayWhy) {
 
 // Debian's interpreter (python3-numpy is a set-up dependency), if it has numpy.
 std::optional<std::string> python_with_numpy() {
-  if (std::system(SLAMVDB_PYTHON " -c 'import numpy' > /dev/null 2>&1") == 0) return std::string(SLAMVDB_PYTHON);
+  if (std::system((std::string(SLAMVDB_PYTHON) + " -c 'import numpy' > /dev/null 2>&1").c_str()) == 0) return std::string(SLAMVDB_PYTHON);
   return std::nullopt;
 }
 
