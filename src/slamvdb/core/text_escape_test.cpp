@@ -46,8 +46,8 @@ namespace slamvdb {
 namespace {
 
 TEST(DisplayName, PrintableNamesUpTo64BytesPass) {
-  for (const std::string& name : std::vector<std::string>{"smooth", "a,b", "say \"hi\"", "x|y", "dirt road", "Gr\xc3\xa4ser \xe6\x9c\xa8",
-                                  std::string(64, 'n')})
+  for (const std::string& name : std::vector<std::string>{"smooth", "a,b", "say \"hi\"", "x|y", "dirt road",
+                                                          "Gr\xc3\xa4ser \xe6\x9c\xa8", std::string(64, 'n')})
     EXPECT_EQ(display_name_problem(name), "") << name;
 }
 

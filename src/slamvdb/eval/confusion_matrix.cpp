@@ -122,8 +122,8 @@ std::string to_markdown(const MetricsReport& r) {
   out += fmt::format("| *all* | {} | {} |  |  | {} | {} |\n", pct(r.hit_rate), pct(r.accuracy), thousands(r.scored),
                      thousands(r.scored));
   for (const auto& c : r.classes)
-    out += fmt::format("| *{}* | {} | {} | {} | {} | {} | {} |\n", markdown_cell(c.name), pct(c.hit), pct(c.recall), pct(c.precision),
-                       pct(c.iou), thousands(c.recalled), thousands(c.relevant));
+    out += fmt::format("| *{}* | {} | {} | {} | {} | {} | {} |\n", markdown_cell(c.name), pct(c.hit), pct(c.recall),
+                       pct(c.precision), pct(c.iou), thousands(c.recalled), thousands(c.relevant));
   out += fmt::format("\nmIoU {} % over the classes with a defined IoU; \"all\" recall = overall accuracy.", pct(r.miou));
   if (!r.ignored_classes.empty()) {
     std::vector<std::string> ignored;

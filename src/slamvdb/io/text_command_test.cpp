@@ -49,7 +49,8 @@ TEST(QueryCommand, PointsAreReadAsWrittenOrRefused) {
   // Before: "10 20 30" answered for (10, 0, 0) and "-5.625 15.125 -1.875" for (-5.625, 5.125, 1.875).
   for (const auto& [at, xyz] : std::vector<std::pair<std::string, std::vector<std::string>>>{
            {"10 20 30", {"10", "20", "30"}}, {"-5.625 15.125 -1.875", {"-5.625", "15.125", "-1.875"}}}) {
-    const auto r = run_command(shell_quote(SLAMVDB_CLI_PATH) + " " + query + " --at " + shell_quote(at) + " 2>/dev/null");
+    const auto r =
+        run_command(shell_quote(SLAMVDB_CLI_PATH) + " " + query + " --at " + shell_quote(at) + " 2>/dev/null");
     ASSERT_EQ(r.exit_code, 0) << at << "\n" << r.output;
     const CsvRecords rows = strict_csv(r.output, 11);
     ASSERT_EQ(rows.size(), 2u) << r.output;
@@ -134,9 +135,9 @@ TEST(TextOutputs, NamesWithControlCharactersAreRefusedAndNeverPrintedRaw) {
     text.replace(text.find("\"rough\""), 7, "\"" + hostile + "\"");
     std::ofstream(f.queries, std::ios::trunc) << text;
     const std::string queries = " --queries " + shell_quote(f.queries.string());
-    for (const std::string& args : {"classify " + map + queries + " -o " + f.out("c.csv"),
-                                    "export " + map + queries + " -o " + f.out("e.csv"),
-                                    "query " + map + queries + " --at 1,1,0", "query " + map + queries + " --class smooth"}) {
+    for (const std::string& args :
+         {"classify " + map + queries + " -o " + f.out("c.csv"), "export " + map + queries + " -o " + f.out("e.csv"),
+          "query " + map + queries + " --at 1,1,0", "query " + map + queries + " --class smooth"}) {
       const auto r = run_command(f.cli(args));
       EXPECT_EQ(r.exit_code, 1) << args << "\n" << r.output;
       EXPECT_NE(r.output.find(f.queries.string() + ": the name of class 2"), std::string::npos) << r.output;

@@ -54,7 +54,8 @@ class Reader {
   std::string name(const YAML::Node& node, std::string_view what) const {
     std::string s = string(node, what);
     if (const std::string problem = display_name_problem(s); !problem.empty())
-      fail(node, fmt::format("{} '{}' {} ({})", what, escape_control(s, kMaxDisplayNameBytes), problem, kDisplayNameRule));
+      fail(node, fmt::format("{} '{}' {} ({})", what, escape_control(s, kMaxDisplayNameBytes), problem,
+                             kDisplayNameRule));
     return s;
   }
   long long integer(const YAML::Node& node, std::string_view what, long long lo, long long hi) const {
