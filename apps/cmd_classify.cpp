@@ -9,6 +9,7 @@
 #include "demo_outputs.hpp"
 #include "feature_options.hpp"
 #include "option_checks.hpp"
+#include "slamvdb/core/text_escape.hpp"
 #include "slamvdb/io/nav_grid_files.hpp"
 #include "slamvdb/query/nav_grid.hpp"
 #include "slamvdb/query/map_query.hpp"
@@ -80,7 +81,7 @@ void run(const Options& opt) {
              cells.size(), opt.queries, queries.size(), opt.no_void_rule ? "off" : "on", seconds);
   fmt::print("| class | voxels | share |\n|---|---|---|\n");
   for (int k = 0; k < queries.size(); ++k)
-    fmt::print("| {} | {} | {:.1f}% |\n", queries.names[k], per_class[k],
+    fmt::print("| {} | {} | {:.1f}% |\n", markdown_cell(queries.names[k]), per_class[k],
                cells.empty() ? 0.0 : 100.0 * per_class[k] / cells.size());
   if (unclassified) fmt::print("| (no class: zero embedding) | {} | |\n", unclassified);
   if (!opt.csv.empty()) {

@@ -55,8 +55,8 @@ void run(const Options& opt) {
   const MetricsReport report = r.matrix.report();
   fmt::print("per-image baseline: {} images, {} labelled pixels at the feature resolution ({} unlabelled), queries "
              "{} ({}), void -> second best {}\n\n{}",
-             r.images, r.pixels, r.unlabelled_pixels, opt.queries, queries.model_id, opt.no_void_rule ? "off" : "on",
-             to_markdown(report));
+             r.images, r.pixels, r.unlabelled_pixels, opt.queries, escape_control(queries.model_id),
+             opt.no_void_rule ? "off" : "on", to_markdown(report));
   if (!opt.markdown.empty()) write_file(opt.markdown, to_markdown(report));
   if (!opt.json.empty()) write_file(opt.json, to_json(report));
   if (!opt.csv.empty()) write_file(opt.csv, to_csv(report));

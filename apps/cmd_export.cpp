@@ -16,6 +16,7 @@
 #include "feature_options.hpp"
 #include "option_checks.hpp"
 #include "progress.hpp"
+#include "slamvdb/core/csv.hpp"
 #include "slamvdb/core/error.hpp"
 #include "slamvdb/io/atomic_file.hpp"
 #include "slamvdb/io/html_viewer.hpp"
@@ -131,12 +132,13 @@ void run(Options opt) {
         write_classified_csv(output, cells, *queries);
         fmt::print("CSV  {}: {} rows x,y,z,class,score,margin,count", output, cells.size());
       } else {
-        std::string csv = "x,y,z,count\n";
-        std::size_t rows = 0;
+        CsvWriter csv({"x", "y", "z", "count"});
         for (const ColouredVoxel& v : colour_occupied_voxels(map, [](const float*) { return Rgb{}; }))
-          if (v.count) csv += fmt::format("{:.3f},{:.3f},{:.3f},{}\n", v.position.x(), v.position.y(), v.position.z(), v.count), ++rows;
-        write_file_atomically(output, csv);
-        fmt::print("CSV  {}: {} rows x,y,z,count (give --queries for class,score,margin)", output, rows);
+          if (v.count)
+            csv.row({fmt::format("{:.3f}", v.position.x()), fmt::format("{:.3f}", v.position.y()),
+                     fmt::format("{:.3f}", v.position.z()), fmt::format("{}", v.count)});
+        write_file_atomically(output, csv.text());
+        fmt::print("CSV  {}: {} rows x,y,z,count (give --queries for class,score,margin)", output, csv.rows());
       }
     } else if (format == "npy") {
       const std::size_t n = write_embeddings_npy(output, map);

@@ -4,6 +4,7 @@
 
 #include "command_registry.hpp"
 #include "feature_options.hpp"
+#include "slamvdb/core/text_escape.hpp"
 #include "slamvdb/ontology/ontology.hpp"
 #include "slamvdb/query/query_set.hpp"
 
@@ -20,8 +21,13 @@ void run(const Options& opt) {
   if (!opt.ontology.empty()) ontology = Ontology::load_or_builtin(opt.ontology);
   const QuerySet q = import_query_csv_dir(opt.dir, opt.model_id, ontology ? &*ontology : nullptr);
   save_query_set(opt.output, q);
-  fmt::print("{} classes ({}), {}-d, model {}{} -> {}\n", q.size(), fmt::join(q.names, ", "), q.dim(), q.model_id,
-             ontology ? ", order and colours from ontology " + ontology->name() : std::string(), opt.output);
+  // Names and ids come from files: printed with control characters escaped.
+  std::vector<std::string> names;
+  for (const std::string& name : q.names) names.push_back(escape_control(name));
+  fmt::print("{} classes ({}), {}-d, model {}{} -> {}\n", q.size(), fmt::join(names, ", "), q.dim(),
+             escape_control(q.model_id),
+             ontology ? ", order and colours from ontology " + escape_control(ontology->name()) : std::string(),
+             opt.output);
 }
 
 void add(CLI::App& root) {

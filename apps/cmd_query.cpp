@@ -4,12 +4,11 @@
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
-#include <sstream>
-
 #include "command_registry.hpp"
 #include "feature_options.hpp"
 #include "option_checks.hpp"
-#include "slamvdb/core/regular_file.hpp"
+#include "slamvdb/core/csv.hpp"
+#include "slamvdb/core/point_text.hpp"
 #include "slamvdb/inference/simulated_encoders.hpp"
 #include "demo_outputs.hpp"
 #include "slamvdb/io/atomic_file.hpp"
@@ -33,29 +32,22 @@ struct Options {
   bool ignore_model_id = false, no_void_rule = false;
 };
 
-Vec3d parse_point(const std::string& text, const std::string& where) {
-  std::array<double, 3> v{};
-  std::istringstream in(text);
-  char sep = 0;
-  if (!(in >> v[0] >> sep >> v[1] >> sep >> v[2]) || !std::isfinite(v[0] + v[1] + v[2]))
-    throw CLI::ValidationError(where, fmt::format("'{}' is not x,y,z", text));
-  return {v[0], v[1], v[2]};
-}
-
-// Points to look up: a regular file (a FIFO would block), at most 256 MiB (~10 M points).
-constexpr std::uint64_t kMaxPointsCsvBytes = std::uint64_t{256} << 20;
-
-std::vector<Vec3d> read_points_csv(const std::string& file) {
-  std::istringstream in(read_regular_file(file, "points CSV", kMaxPointsCsvBytes));
+// --at and --at-csv, read before the map (core/point_text.hpp: one strict parser for every way a
+// point comes in). A bad --at is a usage error; a bad line of the file a runtime error naming it.
+std::vector<Vec3d> read_points(const Options& opt) {
   std::vector<Vec3d> points;
-  std::string line;
-  for (int n = 1; std::getline(in, line); ++n) {
-    if (line.empty() || (n == 1 && line.find_first_of("0123456789-") != 0)) continue;  // a header
+  for (const auto& p : opt.at) {
     try {
-      points.push_back(parse_point(line, fmt::format("{}:{}", file, n)));
-    } catch (const CLI::ValidationError& e) {
-      throw Error(fmt::format("{}:{}: '{}' is not x,y,z", file, n, line));
+      points.push_back(parse_point(p, "--at"));
+    } catch (const Error& e) {
+      usage_error(e.what());
     }
+  }
+  if (!opt.at_csv.empty()) {
+    const PointsText file = read_points_file(opt.at_csv);
+    if (file.points.empty())
+      throw Error(fmt::format("points file {} holds no point{}", opt.at_csv, file.header ? " (only a header)" : ""));
+    points.insert(points.end(), file.points.begin(), file.points.end());
   }
   return points;
 }
@@ -155,31 +147,28 @@ std::string output_format(const std::string& output) {
   return ext;
 }
 
-void run_points(const Options& opt, const SemanticMap& map) {
-  std::vector<Vec3d> points;
-  for (const auto& p : opt.at) points.push_back(parse_point(p, "--at"));
-  if (!opt.at_csv.empty()) {
-    const auto more = read_points_csv(opt.at_csv);
-    points.insert(points.end(), more.begin(), more.end());
-  }
+void run_points(const Options& opt, const SemanticMap& map, const std::vector<Vec3d>& points) {
   std::optional<QuerySet> queries;
   if (!opt.queries.empty()) queries = load_query_set(opt.queries);
   ClassifyOptions options;
   options.void_to_second_best = !opt.no_void_rule;
   const auto answers = query_points(map, points, queries ? &*queries : nullptr, options,
                                     opt.ignore_model_id ? ModelIdCheck::kIgnore : ModelIdCheck::kRequireMatch);
-  std::string csv = "x,y,z,found,cell_x,cell_y,cell_z,count,class,score,margin\n";
+  CsvWriter csv({"x", "y", "z", "found", "cell_x", "cell_y", "cell_z", "count", "class", "score", "margin"});
   for (const PointQuery& a : answers) {
     const std::string cls = a.match && a.match->class_index != kNoClass ? queries->names[a.match->class_index] : "";
-    csv += fmt::format("{},{},{},{},{:.3f},{:.3f},{:.3f},{},{},{},{}\n", a.point_world.x(), a.point_world.y(),
-                       a.point_world.z(), a.found ? 1 : 0, a.cell_centre.x(), a.cell_centre.y(), a.cell_centre.z(),
-                       a.count, cls, a.match ? fmt::format("{:.6f}", a.match->score) : "",
-                       a.match ? fmt::format("{:.6f}", a.match->margin) : "");
+    csv.row({fmt::format("{}", a.point_world.x()), fmt::format("{}", a.point_world.y()),
+             fmt::format("{}", a.point_world.z()), a.found ? "1" : "0", fmt::format("{:.3f}", a.cell_centre.x()),
+             fmt::format("{:.3f}", a.cell_centre.y()), fmt::format("{:.3f}", a.cell_centre.z()),
+             fmt::format("{}", a.count), cls, a.match ? fmt::format("{:.6f}", a.match->score) : "",
+             a.match ? fmt::format("{:.6f}", a.match->margin) : ""});
   }
   if (opt.output.empty()) {
-    fmt::print("{}", csv);
+    // CSV on a terminal: class names are bounded when the query set is loaded (no control
+    // characters), so the data are printed as they would be written.
+    fmt::print("{}", csv.text());
   } else {
-    write_file_atomically(opt.output, csv);
+    write_file_atomically(opt.output, csv.text());
     fmt::print("{} points, {} in a semantic voxel: {}\n", answers.size(),
                std::count_if(answers.begin(), answers.end(), [](const PointQuery& a) { return a.found; }), opt.output);
   }
@@ -199,12 +188,10 @@ void run(const Options& opt) {
     throw CLI::ValidationError("--output", "point look-ups are written as .csv");
   if ((!opt.classes.empty() || !opt.not_classes.empty()) && opt.queries.empty())
     throw CLI::ValidationError("--class", "needs --queries QUERIES.json");
-  if (spatial) {
-    for (const auto& p : opt.at) parse_point(p, "--at");
-  }
+  const std::vector<Vec3d> points = spatial ? read_points(opt) : std::vector<Vec3d>{};
   if (!opt.output.empty()) check_output_file(opt.output, "--output");
   const SemanticMap map = load_map(opt.map);
-  if (spatial) return run_points(opt, map);
+  if (spatial) return run_points(opt, map, points);
 
   const Eigen::VectorXf q = build_query(opt, map);
   SearchOptions search;
@@ -228,12 +215,14 @@ void run(const Options& opt) {
 void write_results(const std::string& format, const std::string& output, const Options& opt, const SemanticMap& map,
                    const std::vector<ScoredCell>& results, float lo, float hi) {
   if (format == ".csv") {
-    std::string csv = "rank,x,y,z,score,count\n";
-    for (std::size_t i = 0; i < results.size(); ++i)
-      csv += fmt::format("{},{:.3f},{:.3f},{:.3f},{:.6f},{}\n", i + 1, results[i].position_world.x(),
-                         results[i].position_world.y(), results[i].position_world.z(), results[i].score,
-                         results[i].count);
-    write_file_atomically(output, csv);
+    CsvWriter csv({"rank", "x", "y", "z", "score", "count"});
+    for (std::size_t i = 0; i < results.size(); ++i) {
+      const Vec3d& p = results[i].position_world;
+      csv.row({fmt::format("{}", i + 1), fmt::format("{:.3f}", p.x()), fmt::format("{:.3f}", p.y()),
+               fmt::format("{:.3f}", p.z()), fmt::format("{:.6f}", results[i].score),
+               fmt::format("{}", results[i].count)});
+    }
+    write_file_atomically(output, csv.text());
     fmt::print("CSV  {}: {} rows\n", output, results.size());
   } else if (format == ".png") {
     std::vector<ClassifiedCell> cells;
@@ -297,8 +286,14 @@ void add(CLI::App& root) {
       ->capture_default_str();
   cmd->add_option("--threshold", opt->threshold, "Keep voxels whose cosine similarity is at least this")
       ->check(CLI::Range(-1.0, 1.0));
-  cmd->add_option("--at", opt->at, "A world point x,y,z to look up (repeatable)");
-  cmd->add_option("--at-csv", opt->at_csv, "A CSV file of world points x,y,z to look up")->check(CLI::ExistingFile);
+  cmd->add_option("--at", opt->at,
+                  "A world point to look up (repeatable): x,y,z or \"x y z\", decimal numbers with '.' (no hex, nan, "
+                  "inf or trailing text)");
+  cmd->add_option("--at-csv", opt->at_csv,
+                  "A file of world points to look up, one per line as for --at (fields separated by commas or by "
+                  "blanks, numbers optionally in double quotes); a first line x,y,z that holds no number is a header, "
+                  "a UTF-8 byte order mark and blank lines are skipped, any other bad line is an error naming it")
+      ->check(CLI::ExistingFile);
   cmd->add_option("-o,--output", opt->output,
                   "Write the results; the format follows the extension: .csv (similarity: rank,x,y,z,score,count; "
                   "points: x,y,z,found,cell_x,cell_y,cell_z,count,class,score,margin), .ply (voxels coloured by score), "

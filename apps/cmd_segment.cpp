@@ -63,6 +63,9 @@ std::vector<std::string> parse_classes(const std::string& list) {
     name.erase(0, name.find_first_not_of(" \t"));
     name.erase(name.find_last_not_of(" \t") + 1);
     if (name.empty()) throw Error(fmt::format("--classes '{}' has an empty class name", list));
+    // The names go into legend.txt (tab-separated) and onto the terminal: the rule of every class name.
+    if (const std::string problem = display_name_problem(name); !problem.empty())
+      throw Error(fmt::format("--classes: class name '{}' {}", escape_control(name, 80), problem));
     names.push_back(std::move(name));
     start = end + 1;
   }

@@ -56,7 +56,7 @@ void run(Options opt) {
   if (opt.train.init != QueryInit::kClassMean) text = make_text_encoder(opt.features);
   fmt::print("train-queries: {} labelled images of {} ({}), ontology {} ({} classes), {} pixels per image ({}), "
              "samples ~{:.0f} MB\n",
-             images.size(), seq.root.string(), seq.layout, ontology.name(), ontology.num_classes(),
+             images.size(), seq.root.string(), seq.layout, escape_control(ontology.name()), ontology.num_classes(),
              opt.train.pixels_per_image, opt.sampling, gb * 1e3);
   std::fflush(stdout);
 
@@ -99,8 +99,8 @@ void run(Options opt) {
              report.train_images, report.train_pixels, report.val_images, report.val_pixels, report.without_labels,
              report.init, report.extract_seconds, report.train_seconds);
   if (report.dropped_pixels) fmt::print("{} sampled pixels had zero or non-finite features and were dropped\n", report.dropped_pixels);
-  fmt::print("query set ({} classes, {}-d, model {}) saved to {}\n", queries.size(), queries.dim(), queries.model_id,
-             opt.output);
+  fmt::print("query set ({} classes, {}-d, model {}) saved to {}\n", queries.size(), queries.dim(),
+             escape_control(queries.model_id), opt.output);
 }
 #endif
 

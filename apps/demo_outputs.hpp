@@ -6,6 +6,7 @@
 #include <fstream>
 #include <vector>
 
+#include "slamvdb/core/csv.hpp"
 #include "slamvdb/core/error.hpp"
 #include "slamvdb/inference/simulated_encoders.hpp"
 #include "slamvdb/io/map_export.hpp"
@@ -26,14 +27,15 @@ namespace slamvdb::cli {
 // x,y,z,class,score,margin,count. `cells` in the order to write (sort_by_cell for a stable file).
 inline void write_classified_csv(const std::filesystem::path& path, const std::vector<ClassifiedCell>& cells,
                                  const QuerySet& queries) {
-  std::string csv = "x,y,z,class,score,margin,count\n";
+  CsvWriter csv({"x", "y", "z", "class", "score", "margin", "count"});
   for (const ClassifiedCell& c : cells) {
     const Vec3d& p = c.position_world;
-    const std::string name = c.match.class_index == kNoClass ? "" : queries.names[c.match.class_index];
-    csv += fmt::format("{:.3f},{:.3f},{:.3f},{},{:.6f},{:.6f},{}\n", p.x(), p.y(), p.z(), name, c.match.score,
-                       c.match.margin, c.count);
+    const std::string_view name =
+        c.match.class_index == kNoClass ? std::string_view() : std::string_view(queries.names[c.match.class_index]);
+    csv.row({fmt::format("{:.3f}", p.x()), fmt::format("{:.3f}", p.y()), fmt::format("{:.3f}", p.z()), name,
+             fmt::format("{:.6f}", c.match.score), fmt::format("{:.6f}", c.match.margin), fmt::format("{}", c.count)});
   }
-  write_file_atomically(path, csv);
+  write_file_atomically(path, csv.text());
 }
 
 // The map's occupied voxels in the world, semantic ones coloured by `colour_of(index into cells)`

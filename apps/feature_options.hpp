@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "slamvdb/core/error.hpp"
+#include "slamvdb/core/text_escape.hpp"
 #include "slamvdb/inference/simulated_encoders.hpp"
 #include "slamvdb/io/dataset.hpp"
 #include "slamvdb/pipeline/feature_source.hpp"
@@ -132,7 +133,7 @@ inline std::unique_ptr<FeatureSource> make_feature_source(const FeatureOptions& 
   if (o.features == "model") {
 #if SLAMVDB_WITH_TORCH
     auto encoder = std::make_unique<TorchDenseImageEncoder>(o.model, TorchEncoderOptions{.threads = o.threads});
-    spdlog::info("network {}: {}-d features", encoder->model_id(), encoder->dim());
+    spdlog::info("network {}: {}-d features", escape_control(encoder->model_id()), encoder->dim());
     return std::make_unique<EncoderFeatureSource>(std::move(encoder), EncoderFeatureSource::Input::kRgb);
 #else
     throw Error("this slamvdb was built without TorchScript support (SLAMVDB_WITH_TORCH=OFF)");

@@ -109,6 +109,8 @@ int main(int argc, char** argv) {
   "output": {"dim": 8, "l2_normalized": true, "normalize_output": false}})");
   seed("poses_tum", "tum", "# stamp tx ty tz qx qy qz qw\n0.0 1 2 3 0 0 0 1\n0.1 1.5 2 3 0 0 0.7071068 0.7071068\n");
   seed("poses_tum", "kitti", "1 0 0 0 0 1 0 0 0 0 1 0\n");
+  seed("points", "commas", "x,y,z\n1.5,-2,0.25\n\"3\",\"4\",\"5e2\"\n");
+  seed("points", "blanks", "\xEF\xBB\xBF" "10 20 30\r\n-5.625\t15.125\t-1.875\r\n\n");
   seed("ontology", "coarse", file_bytes(fs::path(SLAMVDB_SOURCE_DIR) / "data/ontology/rellis3d_coarse.yaml"));
   seed("ontology", "fine", file_bytes(fs::path(SLAMVDB_SOURCE_DIR) / "data/ontology/rellis3d_fine.yaml"));
 

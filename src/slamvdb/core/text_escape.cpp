@@ -44,6 +44,8 @@ bool is_invisible_control(char32_t cp) {
          (cp >= 0x2066 && cp <= 0x2069);
 }
 
+bool is_control(char32_t cp) { return cp < 0x20 || cp == 0x7F || is_invisible_control(cp); }
+
 std::string escape(std::string_view text, std::size_t max_bytes, bool keep_newlines) {
   std::string out;
   out.reserve(std::min(text.size(), max_bytes) + 8);
@@ -73,5 +75,31 @@ std::string escape(std::string_view text, std::size_t max_bytes, bool keep_newli
 std::string escape_control(std::string_view text, std::size_t max_bytes) { return escape(text, max_bytes, false); }
 
 std::string escape_control_keep_lines(std::string_view text) { return escape(text, std::string_view::npos, true); }
+
+std::string markdown_cell(std::string_view text) {
+  std::string marked;
+  marked.reserve(text.size() + 4);
+  for (const char c : text) {
+    if (std::string_view("|*_`[]<>\\").find(c) != std::string_view::npos) marked += '\\';
+    marked += c;
+  }
+  return escape_control(marked);
+}
+
+std::string display_name_problem(std::string_view name) {
+  if (name.empty()) return "is empty";
+  if (name.size() > kMaxDisplayNameBytes)
+    return fmt::format("is {} bytes long; at most {} are allowed", name.size(), kMaxDisplayNameBytes);
+  for (std::size_t i = 0; i < name.size();) {
+    char32_t cp = 0;
+    const std::size_t n = utf8_sequence(name, i, cp);
+    if (n == 0) return fmt::format("is not valid UTF-8 (byte {} is \\x{:02x})", i + 1, static_cast<uint8_t>(name[i]));
+    if (is_control(cp))
+      return fmt::format("holds the control character {} at byte {}", escape_control(name.substr(i, n)), i + 1);
+    i += n;
+  }
+  if (name.front() == ' ' || name.back() == ' ') return "begins or ends with a space";
+  return {};
+}
 
 }  // namespace slamvdb

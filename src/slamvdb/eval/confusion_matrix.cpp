@@ -6,18 +6,12 @@
 #include <nlohmann/json.hpp>
 #include <set>
 
+#include "slamvdb/core/csv.hpp"
 #include "slamvdb/core/error.hpp"
+#include "slamvdb/core/text_escape.hpp"
 
 namespace slamvdb {
 namespace {
-
-// A CSV field: quoted when it holds a comma, quote or line break.
-std::string csv_field(const std::string& s) {
-  if (s.find_first_of(",\"\n\r") == std::string::npos) return s;
-  std::string q = "\"";
-  for (char c : s) q += c == '"' ? std::string("\"\"") : std::string(1, c);
-  return q + "\"";
-}
 
 std::optional<double> ratio(uint64_t num, uint64_t den) {
   if (den == 0) return std::nullopt;
@@ -128,11 +122,14 @@ std::string to_markdown(const MetricsReport& r) {
   out += fmt::format("| *all* | {} | {} |  |  | {} | {} |\n", pct(r.hit_rate), pct(r.accuracy), thousands(r.scored),
                      thousands(r.scored));
   for (const auto& c : r.classes)
-    out += fmt::format("| *{}* | {} | {} | {} | {} | {} | {} |\n", c.name, pct(c.hit), pct(c.recall), pct(c.precision),
-                       pct(c.iou), thousands(c.recalled), thousands(c.relevant));
+    out += fmt::format("| *{}* | {} | {} | {} | {} | {} | {} |\n", markdown_cell(c.name), pct(c.hit), pct(c.recall),
+                       pct(c.precision), pct(c.iou), thousands(c.recalled), thousands(c.relevant));
   out += fmt::format("\nmIoU {} % over the classes with a defined IoU; \"all\" recall = overall accuracy.", pct(r.miou));
-  if (!r.ignored_classes.empty())
-    out += fmt::format(" Ignored: {} ({} elements).", fmt::join(r.ignored_classes, ", "), r.ignored);
+  if (!r.ignored_classes.empty()) {
+    std::vector<std::string> ignored;
+    for (const std::string& name : r.ignored_classes) ignored.push_back(markdown_cell(name));
+    out += fmt::format(" Ignored: {} ({} elements).", fmt::join(ignored, ", "), r.ignored);
+  }
   if (r.unpredicted > 0) out += fmt::format(" {} scored elements had no prediction (counted as misses).", r.unpredicted);
   return out + "\n";
 }
@@ -156,12 +153,12 @@ std::string to_json(const MetricsReport& r) {
 
 std::string to_csv(const MetricsReport& r) {
   const auto v = [](const std::optional<double>& x) { return x ? fmt::format("{:.6f}", *x) : std::string(); };
-  std::string out = "class,hit,recall,precision,iou,recalled,relevant\n";
-  out += fmt::format("all,{},{},,,{},{}\n", v(r.hit_rate), v(r.accuracy), r.scored, r.scored);
+  CsvWriter csv({"class", "hit", "recall", "precision", "iou", "recalled", "relevant"});
+  csv.row({"all", v(r.hit_rate), v(r.accuracy), "", "", fmt::format("{}", r.scored), fmt::format("{}", r.scored)});
   for (const auto& c : r.classes)
-    out += fmt::format("{},{},{},{},{},{},{}\n", csv_field(c.name), v(c.hit), v(c.recall), v(c.precision), v(c.iou), c.recalled,
-                       c.relevant);
-  return out;
+    csv.row({c.name, v(c.hit), v(c.recall), v(c.precision), v(c.iou), fmt::format("{}", c.recalled),
+             fmt::format("{}", c.relevant)});
+  return csv.text();
 }
 
 }  // namespace slamvdb

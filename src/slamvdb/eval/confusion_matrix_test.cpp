@@ -5,6 +5,7 @@
 #include <nlohmann/json.hpp>
 
 #include "slamvdb/eval/pixel_scoring.hpp"
+#include "slamvdb/testing/csv_reader.hpp"
 #include "slamvdb/testing/error_of.hpp"
 
 namespace slamvdb {
@@ -107,6 +108,29 @@ TEST(ConfusionMatrix, TablesInThePapersForm) {
   ConfusionMatrix odd({"a,b", "c"});
   odd.add(0, 0);
   EXPECT_NE(to_csv(odd.report()).find("\n\"a,b\","), std::string::npos);
+  // Names with CSV and markdown syntax stay one field / one cell (CSV read back strictly, RFC 4180).
+  const std::vector<std::string> hostile = {"a,b", "say \"hi\"", "x|y", "two\nlines", "*bold*"};
+  ConfusionMatrix m(hostile);
+  for (int k = 0; k < 5; ++k) m.add(k, k);
+  const auto records = testing::read_csv_strict(to_csv(m.report()));
+  ASSERT_TRUE(records);
+  ASSERT_EQ(records->size(), 2u + hostile.size());
+  for (std::size_t k = 0; k < hostile.size(); ++k) {
+    EXPECT_EQ((*records)[k + 2].size(), 7u);
+    EXPECT_EQ((*records)[k + 2][0], hostile[k]);
+  }
+  const std::string table = to_markdown(m.report());
+  std::size_t rows = 0;
+  for (std::size_t start = 0, end; (end = table.find('\n', start)) != std::string::npos; start = end + 1) {
+    const std::string line = table.substr(start, end - start);
+    if (line.empty() || line[0] != '|') continue;
+    ++rows;
+    std::size_t cells = 0;
+    for (std::size_t i = 0; i < line.size(); ++i) cells += line[i] == '|' && (i == 0 || line[i - 1] != '\\');
+    EXPECT_EQ(cells, 8u) << line;
+  }
+  EXPECT_EQ(rows, 3u + hostile.size());  // header, rule, all, one per class
+  EXPECT_NE(table.find("| *x\\|y* |"), std::string::npos) << table;
   EXPECT_NE(to_json(ConfusionMatrix({"a"}).report()).find("\"accuracy\": null"), std::string::npos);
 }
 

@@ -12,6 +12,7 @@
 #include <utility>
 
 #include "slamvdb/core/error.hpp"
+#include "slamvdb/core/text_escape.hpp"
 
 namespace slamvdb {
 namespace {
@@ -47,6 +48,14 @@ class Reader {
     if (!node.IsScalar()) fail(node, fmt::format("{} must be a string", what));
     std::string s = node.as<std::string>();
     if (s.empty()) fail(node, fmt::format("{} is empty", what));
+    return s;
+  }
+  // A name people read in tables, legends and files (core/text_escape.hpp's rule).
+  std::string name(const YAML::Node& node, std::string_view what) const {
+    std::string s = string(node, what);
+    if (const std::string problem = display_name_problem(s); !problem.empty())
+      fail(node, fmt::format("{} '{}' {} ({})", what, escape_control(s, kMaxDisplayNameBytes), problem,
+                             kDisplayNameRule));
     return s;
   }
   long long integer(const YAML::Node& node, std::string_view what, long long lo, long long hi) const {
@@ -98,7 +107,7 @@ Ontology Ontology::parse_checked(std::string_view yaml, std::string_view source)
 
   Ontology o;
   o.source_ = std::string(source);
-  o.name_ = r.string(r.required(doc, "name", "the ontology"), "name");
+  o.name_ = r.name(r.required(doc, "name", "the ontology"), "name");
 
   const YAML::Node classes = r.required(doc, "classes", "the ontology");
   if (!classes.IsSequence() || classes.size() == 0) r.fail(classes, "'classes' must be a non-empty list");
@@ -106,7 +115,7 @@ Ontology Ontology::parse_checked(std::string_view yaml, std::string_view source)
   for (const YAML::Node& c : classes) {
     r.only_keys(c, {"name", "rgb", "cost", "prompt"}, "a class");
     OntologyClass cls;
-    cls.name = r.string(r.required(c, "name", "a class"), "class name");
+    cls.name = r.name(r.required(c, "name", "a class"), "class name");
     if (o.find_class(cls.name)) r.fail(c, fmt::format("duplicate class name '{}'", cls.name));
     cls.rgb = r.rgb(r.required(c, "rgb", "class '" + cls.name + "'"), "class '" + cls.name + "' rgb");
     if (c["cost"]) {
@@ -155,7 +164,7 @@ Ontology Ontology::parse_checked(std::string_view yaml, std::string_view source)
     if (o.find_label(label.id)) r.fail(l, fmt::format("duplicate label id {}", label.id));
     if (std::find(o.unlabelled_.begin(), o.unlabelled_.end(), label.id) != o.unlabelled_.end())
       r.fail(l, fmt::format("label id {} is also listed in unlabelled_ids", label.id));
-    label.name = r.string(r.required(l, "name", "a label"), "label name");
+    label.name = r.name(r.required(l, "name", "a label"), "label name");
     if (!label_names.insert(label.name).second) r.fail(l, fmt::format("duplicate label name '{}'", label.name));
     label.rgb = r.rgb(r.required(l, "rgb", "label '" + label.name + "'"), "label '" + label.name + "' rgb");
     const YAML::Node cls = r.required(l, "class", "label '" + label.name + "'");

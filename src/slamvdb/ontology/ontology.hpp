@@ -15,6 +15,8 @@
 //     - {name: smooth, rgb: [170, 170, 170], cost: 1.0, prompt: "paved road"}   # cost, prompt optional
 //   labels:                     # every label id that may occur in the data
 //     - {id: 10, name: asphalt, rgb: [64, 64, 64], class: smooth}
+// The ontology's, classes' and labels' names follow the rule of display_name_problem
+// (core/text_escape.hpp): at most 64 bytes of UTF-8 without control characters.
 #include <array>
 #include <cstdint>
 #include <filesystem>

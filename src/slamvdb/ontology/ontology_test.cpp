@@ -140,6 +140,21 @@ TEST(OntologyFile, BadFilesAreErrorsNamingFileAndLine) {
   EXPECT_NE(err(head + "void_pixels: maybe\n" + labels).find("void_pixels must be 'train' or 'ignore'"), std::string::npos);
   EXPECT_NE(err(head + "unlabelled_ids: [1]\n" + labels).find("label id 1 is also listed in unlabelled_ids"),
             std::string::npos);
+  // Names follow the rule of every name shown in tables (core/text_escape.hpp), with the line.
+  EXPECT_NE(err(head + "  - {name: \"c\\e[31m\", rgb: [1, 2, 3]}\n" + labels)
+                .find("bad.yaml:5: class name 'c\\x1b[31m' holds the control character \\x1b"),
+            std::string::npos);
+  EXPECT_NE(err(head + "  - {name: \"c\\u202Ed\", rgb: [1, 2, 3]}\n" + labels).find("\\u{202e}"), std::string::npos);
+  EXPECT_NE(err(head + labels + "  - {id: 5, name: \"z\\nz\", rgb: [0, 0, 0], class: a}\n")
+                .find("bad.yaml:8: label name 'z\\nz' holds the control character \\n"),
+            std::string::npos);
+  EXPECT_NE(err(head + "  - {name: " + std::string(65, 'c') + ", rgb: [1, 2, 3]}\n" + labels).find("65 bytes"),
+            std::string::npos);
+  EXPECT_NE(err("name: \"t\\e]0;title\\a\"\n" + head.substr(8) + labels).find("bad.yaml:1: name"), std::string::npos);
+  EXPECT_EQ(err("name: t\nclasses:\n  - {name: \"a,b\", rgb: [1, 2, 3]}\n  - {name: \"x|y\", rgb: [1, 2, 3]}\n"
+                "labels:\n  - {id: 1, name: x, rgb: [0, 0, 0], class: \"a,b\"}\n"
+                "  - {id: 2, name: y, rgb: [0, 0, 0], class: \"x|y\"}\n"),
+            "");
   EXPECT_NE(err(head).find("the ontology has no 'labels'"), std::string::npos);
   EXPECT_NE(err("name: t\nclasses: [\n").find("bad.yaml: line"), std::string::npos);
   EXPECT_NE(err("- 1\n- 2\n").find("bad.yaml: is not a YAML mapping"), std::string::npos);

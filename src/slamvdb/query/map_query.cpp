@@ -56,17 +56,16 @@ void check_query_vector(const SemanticMap& map, std::span<const float> query) {
   const int dim = map.params().semantic.dim;
   if (static_cast<int>(query.size()) != dim)
     throw Error(fmt::format("the query has {} values but the map holds {}-d embeddings", query.size(), dim));
-  double n2 = 0;
-  for (const float v : query) n2 += static_cast<double>(v) * v;
-  if (!std::isfinite(n2) || n2 == 0) throw Error("the query vector is zero or not finite");
+  if (!std::all_of(query.begin(), query.end(), [](float v) { return std::isfinite(v); }))
+    throw Error("the query vector holds a NaN or infinite value");
+  if (!unit_vector(query)) throw Error("the query vector is zero");
 }
 
 std::vector<ScoredCell> similarity_search(const SemanticMap& map, std::span<const float> query,
                                           const SearchOptions& options) {
   check_query_vector(map, query);
   const auto dim = query.size();
-  Eigen::VectorXf q = Eigen::Map<const Eigen::VectorXf>(query.data(), static_cast<Eigen::Index>(dim));
-  q.normalize();
+  const Eigen::VectorXf q = *unit_vector(query);  // no float overflow for huge components
   std::vector<ScoredCell> out;
   map.read_index([&](const GlobalIndex& index) {
     struct Local {

@@ -201,7 +201,10 @@ QueryClassifier::QueryClassifier(const QuerySet& queries, ClassifyOptions option
     if (!(options.void_to_second_best && queries.is_void(k))) class_of_row_.push_back(k);
   queries_.resize(static_cast<Eigen::Index>(class_of_row_.size()), queries.dim());
   for (std::size_t r = 0; r < class_of_row_.size(); ++r)
-    queries_.row(static_cast<Eigen::Index>(r)) = queries.vectors.row(class_of_row_[r]).normalized();
+    queries_.row(static_cast<Eigen::Index>(r)) =
+        unit_vector({queries.vectors.row(class_of_row_[r]).data(), static_cast<std::size_t>(queries.dim())})
+            .value()  // validate() refused zero and non-finite rows
+            .transpose();
   use_avx2_ = !options.portable_kernel && cpu_has_avx2_fma();
   use_f16c_ = use_avx2_ && cpu_has_f16c();
 }

@@ -215,5 +215,23 @@ TEST(QueryClassifier, RefusesRaggedInputAndBadQueries) {
   EXPECT_THROW(QueryClassifier{bad}, Error);
 }
 
+TEST(QueryClassifier, HugeOrTinyQueriesClassifyAsTheirDirection) {
+  // Before: rows of 1e30 normalised in float became zero (every score 0).
+  const QuerySet plain = random_queries(4, 16, 21);
+  const std::vector<float> x = random_embeddings(64, 16, 22);
+  const auto expected = QueryClassifier(plain).classify(x);
+  for (const float scale : {1e30f, 1e-30f}) {
+    QuerySet scaled = plain;
+    scaled.vectors *= scale;
+    const auto got = QueryClassifier(scaled).classify(x);
+    ASSERT_EQ(got.size(), expected.size());
+    for (std::size_t i = 0; i < got.size(); ++i) {
+      EXPECT_EQ(got[i].class_index, expected[i].class_index) << scale << " row " << i;
+      EXPECT_NEAR(got[i].score, expected[i].score, 1e-5f) << scale << " row " << i;
+    }
+  }
+}
+
 }  // namespace
 }  // namespace slamvdb
+

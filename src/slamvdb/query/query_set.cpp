@@ -3,9 +3,11 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <cmath>
 #include <set>
 
 #include "slamvdb/core/error.hpp"
+#include "slamvdb/core/text_escape.hpp"
 
 namespace slamvdb {
 
@@ -28,11 +30,15 @@ void QuerySet::validate(std::string_view where) const {
   if (vectors.cols() < 1) fail("the query vectors have dimension 0");
   std::set<std::string_view> seen;
   for (std::size_t k = 0; k < names.size(); ++k) {
-    if (names[k].empty()) fail(fmt::format("class {} has an empty name", k));
+    // Names reach CSV files, terminals and markdown tables: bounded here, where every query set
+    // passes (loaded, imported, trained, or made by a program).
+    if (const std::string problem = display_name_problem(names[k]); !problem.empty())
+      fail(fmt::format("the name of class {} '{}' {} ({})", k + 1, escape_control(names[k], kMaxDisplayNameBytes),
+                       problem, kDisplayNameRule));
     if (!seen.insert(names[k]).second) fail(fmt::format("class name '{}' appears twice", names[k]));
     const auto row = vectors.row(static_cast<Eigen::Index>(k));
     if (!row.allFinite()) fail(fmt::format("the vector of class '{}' has a NaN or infinite value", names[k]));
-    if (row.squaredNorm() == 0.f) fail(fmt::format("the vector of class '{}' is zero", names[k]));
+    if (row.cwiseAbs().maxCoeff() == 0.f) fail(fmt::format("the vector of class '{}' is zero", names[k]));
   }
   if (!colours.empty() && colours.size() != names.size())
     fail(fmt::format("{} colours for {} classes", colours.size(), names.size()));
@@ -80,6 +86,16 @@ std::vector<int> ontology_classes_of(const QuerySet& queries, const Ontology& on
   return classes;
 }
 
+std::optional<Eigen::VectorXf> unit_vector(std::span<const float> v) {
+  double n2 = 0;
+  for (const float x : v) n2 += static_cast<double>(x) * x;
+  if (!std::isfinite(n2) || !(n2 > 0)) return std::nullopt;
+  const double inv = 1.0 / std::sqrt(n2);
+  Eigen::VectorXf unit(static_cast<Eigen::Index>(v.size()));
+  for (std::size_t i = 0; i < v.size(); ++i) unit[static_cast<Eigen::Index>(i)] = static_cast<float>(v[i] * inv);
+  return unit;
+}
+
 Eigen::VectorXf composite_query(const std::vector<Eigen::VectorXf>& positive,
                                 const std::vector<Eigen::VectorXf>& negative) {
   if (positive.empty()) throw Error("a composite query needs at least one positive term");
@@ -89,14 +105,15 @@ Eigen::VectorXf composite_query(const std::vector<Eigen::VectorXf>& positive,
     if (term.size() != dim)
       throw Error(fmt::format("{} term {} is {}-d, the first positive term {}-d", kind, i + 1, term.size(), dim));
     if (!term.allFinite()) throw Error(fmt::format("{} term {} has a NaN or infinite value", kind, i + 1));
-    const float norm = term.norm();
-    if (!(norm > 0.f)) throw Error(fmt::format("{} term {} is a zero vector", kind, i + 1));
-    sum += (sign / norm) * term;
+    const auto unit = unit_vector({term.data(), static_cast<std::size_t>(term.size())});
+    if (!unit) throw Error(fmt::format("{} term {} is a zero vector", kind, i + 1));
+    sum += sign * *unit;
   };
   for (std::size_t i = 0; i < positive.size(); ++i) add(positive[i], 1.f, "positive", i);
   for (std::size_t i = 0; i < negative.size(); ++i) add(negative[i], -1.f, "negative", i);
+  // The terms are unit vectors, so the sum is at most their number long: no overflow here. Terms
+  // that cancel (the same text positive and negative) leave rounding noise, not a direction.
   const float norm = sum.norm();
-  // Terms that cancel (the same text positive and negative) leave rounding noise, not a direction.
   if (!(norm > 1e-4f)) throw Error("the composite query's terms cancel out: the result is a zero vector");
   return sum / norm;
 }

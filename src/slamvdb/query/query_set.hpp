@@ -12,6 +12,7 @@
 #include <filesystem>
 #include <map>
 #include <optional>
+#include <span>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -43,8 +44,9 @@ struct QuerySet {
   int dim() const { return static_cast<int>(vectors.cols()); }
   std::optional<int> find(std::string_view name) const;
   bool is_void(int k) const;
-  // Throws Error (prefixed with `where`) unless: >= 1 class, unique non-empty names, one row per
-  // name, dim >= 1, finite non-zero rows, colours empty or one per class, void indices valid,
+  // Throws Error (prefixed with `where`) unless: >= 1 class, unique names that follow the rule of
+  // display_name_problem (core/text_escape.hpp: at most 64 bytes, no control characters), one row
+  // per name, dim >= 1, finite non-zero rows, colours empty or one per class, void indices valid,
   // unique and not all classes, a non-empty model id.
   void validate(std::string_view where) const;
 };
@@ -77,10 +79,16 @@ void check_compatible(const QuerySet& queries, int map_dim, std::string_view map
 // that are no class of the ontology.
 std::vector<int> ontology_classes_of(const QuerySet& queries, const Ontology& ontology);
 
+// `v / |v|` with the norm summed in double: in float the sum of squares overflows to infinity for
+// components beyond ~1e19 (a 1e30 vector became a "zero vector") and underflows to zero below
+// ~1e-19; in double no finite float vector does either. nullopt for a zero or non-finite vector.
+std::optional<Eigen::VectorXf> unit_vector(std::span<const float> v);
+
 // Paper Figure 6.2: one query from positive and negative terms, sum(positive) - sum(negative),
 // each term L2-normalised first (so no term outweighs another by its length: text encoders do not
-// all normalise) and the result normalised (similarities stay cosines). Throws Error without a
-// positive term, on mixed dimensions, zero or non-finite terms, or a zero result.
+// all normalise; unit_vector, so that any finite term has its direction) and the result normalised
+// (similarities stay cosines). Throws Error without a positive term, on mixed dimensions, zero or
+// non-finite terms, or terms that cancel out.
 Eigen::VectorXf composite_query(const std::vector<Eigen::VectorXf>& positive,
                                 const std::vector<Eigen::VectorXf>& negative);
 

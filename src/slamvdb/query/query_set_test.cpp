@@ -229,5 +229,65 @@ TEST(QuerySet, CompositeQueryIsTheNormalisedSignedSumOfUnitTerms) {
   EXPECT_NE(error_of([&] { composite_query({Eigen::Vector3f(NAN, 0, 0)}, {}); }).find("NaN"), std::string::npos);
 }
 
+TEST(QuerySet, ClassNamesAreBoundedWhereverASetComesFrom) {
+  testing::TempDir dir;
+  const fs::path f = dir.path / "q.json";
+  // Commas, quotes and pipes are names like any other (the CSV writer quotes them).
+  QuerySet q = random_set(3, 4, 5);
+  q.names = {"a,b", "say \"hi\"", "x|y"};
+  save_query_set(f, q);
+  EXPECT_EQ(load_query_set(f).names, q.names);
+  // Control characters (ANSI escapes, a right-to-left override, a line break), bad UTF-8 and long
+  // names are refused when the file is loaded, naming the file and the class, the name escaped.
+  std::ifstream in(f);
+  const std::string good((std::istreambuf_iterator<char>(in)), {});
+  for (const auto& [json_name, mention] : std::vector<std::pair<std::string, std::string>>{
+           {"red\\u001b[31m", "'red\\x1b[31m' holds the control character \\x1b"},
+           {"abc\\u202efdp", "\\u{202e}"},
+           {"two\\nlines", "'two\\nlines' holds the control character \\n"},
+           {std::string(65, 'n'), "65 bytes long; at most 64"},
+           {" padded", "space"}}) {
+    std::string text = good;
+    text.replace(text.find("\"x|y\""), 5, "\"" + json_name + "\"");
+    write(f, text);
+    const std::string error = error_of([&] { load_query_set(f); });
+    EXPECT_NE(error.find(f.string() + ": the name of class 3 "), std::string::npos) << error;
+    EXPECT_NE(error.find(mention), std::string::npos) << error;
+    EXPECT_EQ(error.find('\x1b'), std::string::npos) << error;
+    EXPECT_EQ(error.find("\xe2\x80\xae"), std::string::npos) << error;
+  }
+  // The same rule for a set made by a program, and for class names taken from CSV file names.
+  q.names[0] = "tab\tname";
+  EXPECT_NE(error_of([&] { save_query_set(f, q); }).find("control character \\t"), std::string::npos);
+  const fs::path csv_dir = dir.path / "csv";
+  fs::create_directories(csv_dir);
+  write(csv_dir / "grass.csv", "1,0\n");
+  write(csv_dir / "mud\x1b[2J.csv", "0,1\n");
+  EXPECT_NE(error_of([&] { import_query_csv_dir(csv_dir, "m"); }).find("control character \\x1b"), std::string::npos);
+}
+
+TEST(QuerySet, HugeAndTinyFiniteTermsKeepTheirDirection) {
+  // Before: a 1e30 vector's float sum of squares overflowed, and the query was reported as
+  // "terms cancel out: zero vector"; below ~1e-19 it underflowed to a "zero" vector.
+  const Eigen::Vector3f direction = Eigen::Vector3f(1, 2, -2) / 3;
+  for (const float scale : {1e30f, 3e38f / 2, 1e-30f, 1e-42f /* subnormal */}) {
+    const Eigen::Vector3f term = Eigen::Vector3f(1, 2, -2) * scale;
+    ASSERT_TRUE(term.allFinite()) << scale;
+    const auto unit = unit_vector({term.data(), 3});
+    ASSERT_TRUE(unit) << scale;
+    EXPECT_TRUE(unit->isApprox(direction, 1e-5f)) << scale << " " << unit->transpose();
+    EXPECT_TRUE(composite_query({term}, {}).isApprox(direction, 1e-5f)) << scale;
+  }
+  EXPECT_TRUE(composite_query({Eigen::Vector3f(1e30f, 0, 0)}, {Eigen::Vector3f(0, 1e-30f, 0)})
+                  .isApprox(Eigen::Vector3f(1, -1, 0).normalized()));
+  const float zero[3] = {0, 0, 0}, inf[3] = {0, std::numeric_limits<float>::infinity(), 0};
+  EXPECT_FALSE(unit_vector(zero));
+  EXPECT_FALSE(unit_vector(inf));
+  // Query sets: tiny rows are not "zero".
+  QuerySet q = random_set(2, 3, 9);
+  q.vectors *= 1e-30f;
+  EXPECT_NO_THROW(q.validate("tiny"));
+}
+
 }  // namespace
 }  // namespace slamvdb

@@ -64,12 +64,15 @@ struct QueryTrainer::Impl {
 QueryTrainer::QueryTrainer(const QueryMatrix& initial, const TrainerOptions& options) : impl_(std::make_unique<Impl>()) {
   validate(options);
   if (initial.rows() < 1 || initial.cols() < 1) throw Error("query training needs at least one class and dimension");
-  for (Eigen::Index k = 0; k < initial.rows(); ++k)
-    if (!initial.row(k).allFinite() || initial.row(k).squaredNorm() == 0.f)
-      throw Error(fmt::format("initial query {} is zero or not finite", k));
+  // Unit rows with the norm in double (query_set.hpp: no float overflow or underflow).
+  QueryMatrix unit(initial.rows(), initial.cols());
+  for (Eigen::Index k = 0; k < initial.rows(); ++k) {
+    const auto row = unit_vector({initial.row(k).data(), static_cast<std::size_t>(initial.cols())});
+    if (!row) throw Error(fmt::format("initial query {} is zero or not finite", k));
+    unit.row(k) = row->transpose();
+  }
   torch::manual_seed(options.seed);
   impl_->options = options;
-  const QueryMatrix unit = initial.rowwise().normalized();
   impl_->queries = torch::from_blob(const_cast<float*>(unit.data()), {unit.rows(), unit.cols()}, torch::kFloat)
                        .clone()
                        .set_requires_grad(true);
