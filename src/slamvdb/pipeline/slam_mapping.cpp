@@ -56,7 +56,7 @@ SlamMappingResult map_with_own_poses(const Sequence& seq, FeatureSource* feature
   // Images are given once the pose after them is (the next readable scan's, or the end of the
   // poses): given before it, they would wait in the mapper's queue for a pose only this thread
   // can give, and a run of unreadable scans would fill the queue and stop this thread for good.
-  std::size_t si = 0, ii = 0;
+  std::size_t si = 0, ii = 0, unreadable = 0;
   const auto give_images_before = [&](double stamp) {
     while (ii < num_images && seq.images[ii].stamp < stamp) mapper.add_image(seq.images[ii++]);
   };
@@ -67,6 +67,7 @@ SlamMappingResult map_with_own_poses(const Sequence& seq, FeatureSource* feature
       scan = load_scan_points({rec.stamp, rec.points});
     } catch (const Error& e) {
       mapper.add_unreadable_scan(fmt::format("scan {}: {}", rec.points.filename().string(), e.what()));
+      ++unreadable;
       if (progress) progress(si, num_scans, tracker.result());
       continue;
     }
@@ -105,6 +106,7 @@ SlamMappingResult map_with_own_poses(const Sequence& seq, FeatureSource* feature
     if (progress) progress(si, num_scans, tracker.result());
     if (mapper.failed()) break;  // finish() names the error
   }
+  if (!mapper.failed()) tracker.require_registered(seq.root.string(), unreadable);
   mapper.end_poses();
   if (!mapper.failed()) give_images_before(std::numeric_limits<double>::infinity());  // after the last pose: counted
   SemanticMap map = mapper.finish();
