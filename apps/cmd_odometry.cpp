@@ -4,7 +4,6 @@
 #include <fmt/format.h>
 #include <tbb/global_control.h>
 
-#include <chrono>
 #include <filesystem>
 #include <fstream>
 #include <map>
@@ -15,10 +14,12 @@
 #include "command_registry.hpp"
 #include "progress.hpp"
 #include "slamvdb/core/error.hpp"
+#include "slamvdb/core/text_escape.hpp"
 #include "slamvdb/io/scan_source.hpp"
 #include "slamvdb/io/trajectory_io.hpp"
 #include "slamvdb/localization/loop_closure.hpp"
 #include "slamvdb/localization/odometry.hpp"
+#include "slamvdb/pipeline/lidar_tracking.hpp"
 
 namespace slamvdb::cli::cmd_odometry {
 namespace {
@@ -51,63 +52,43 @@ void run(const Options& opt) {
   if (opt.threads > 0) threads.emplace(tbb::global_control::max_allowed_parallelism, opt.threads);
   const ScanSource source = open_scan_source(opt.input, opt.rate_hz);
   for (const auto& note : source.notes) fmt::print(stderr, "note: {}\n", note);
-  LidarOdometry odometry(opt.odometry);
-  std::optional<LoopClosingMapper> mapper;
-  if (opt.loop_closure) {
-    LoopClosureConfig config;
-    config.keyframe_distance = opt.keyframe_distance;
-    mapper.emplace(config);
-  }
-  std::vector<double> stamps;
-  std::vector<Pose> poses;
-  std::map<std::string, std::size_t> failures;
-  std::size_t non_finite = 0, out_of_range = 0, recovered = 0;
-  int consecutive = 0;
-  double distance = 0.0, busy = 0.0;
+  TrackingOptions tracking;
+  tracking.odometry = opt.odometry;
+  tracking.loop_closure = opt.loop_closure;
+  tracking.loops.keyframe_distance = opt.keyframe_distance;
+  tracking.max_consecutive_failures = opt.max_consecutive_failures;
+  LidarTracker tracker(tracking);
   ProgressBar bar("odometry", source.scans.size(), "scans");
   for (std::size_t i = 0; i < source.scans.size(); ++i) {
     const ScanFile& file = source.scans[i];
     const ScanPoints scan = load_scan_points(file);
-    const auto start = std::chrono::steady_clock::now();
-    const OdometryResult r = odometry.register_scan(file.stamp, scan.points, scan.time.empty() ? nullptr : &scan.time);
-    if (mapper) mapper->add_scan(file.stamp, r.T_odom_sensor, scan.points, r.predicted_only);
-    busy += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-    non_finite += r.non_finite_points;
-    out_of_range += r.out_of_range_points;
-    recovered += r.recovered && r.status == ScanStatus::kOk;
-    if (r.status != ScanStatus::kOk) {
-      ++failures[to_string(r.status)];
-      fmt::print(stderr, "\nscan {} ({}): {}: {}; constant-velocity prediction used\n", i, file.path.string(),
-                 to_string(r.status), r.reason);
-      if (++consecutive > opt.max_consecutive_failures)
-        throw Error(fmt::format("odometry lost: {} scans in a row could not be registered (last: {}); poses not "
-                                "written",
-                                consecutive, file.path.string()));
-    } else {
-      consecutive = 0;
+    const std::size_t problems = tracker.result().problems.size();
+    try {
+      tracker.track(file.stamp, scan.points, scan.time.empty() ? nullptr : &scan.time, file.path.string());
+    } catch (const Error& e) {
+      throw Error(fmt::format("{}; poses not written", e.what()));
     }
-    if (!poses.empty()) distance += (r.T_odom_sensor.translation() - poses.back().translation()).norm();
-    stamps.push_back(file.stamp);
-    poses.push_back(r.T_odom_sensor);
-    bar.update(i + 1, fmt::format("{:.0f} m, {:.1f} Hz{}", distance, (i + 1) / std::max(busy, 1e-9),
-                                  mapper ? fmt::format(", {} loops", mapper->loops().size()) : ""));
+    const TrackingResult& r = tracker.result();
+    if (r.problems.size() > problems) fmt::print(stderr, "\n{}\n", escape_control(r.problems.back()));
+    bar.update(i + 1, fmt::format("{:.0f} m, {:.1f} Hz{}", r.distance, (i + 1) / std::max(r.busy_seconds, 1e-9),
+                                  r.loop_closer ? fmt::format(", {} loops", r.loop_closer->loops().size()) : ""));
   }
   bar.finish();
-  if (mapper)
-    for (std::size_t i = 0; i < poses.size(); ++i) poses[i] = mapper->corrected_pose(stamps[i], poses[i]);
-  write_trajectory(opt.output, stamps, poses, opt.format);
+  tracker.require_registered(opt.input);  // poses that are all guesses are not written
+  const TrackingResult r = tracker.take_result();
+  std::vector<Pose> poses;
+  for (std::size_t i = 0; i < r.stamps.size(); ++i) poses.push_back(r.corrected(i));
+  write_trajectory(opt.output, r.stamps, poses, opt.format);
 
-  std::size_t failed = 0;
-  for (const auto& [reason, n] : failures) failed += n;
   fmt::print("odometry of {} ({}): {} scans, {:.1f} m, {:.1f} scans/s\n", opt.input, source.kind, poses.size(),
-             distance, poses.size() / std::max(busy, 1e-9));
-  fmt::print("  registered   {} ({} after a wide retry)\n", poses.size() - failed, recovered);
-  for (const auto& [reason, n] : failures) fmt::print("  not registered ({}): {} (prediction used)\n", reason, n);
-  fmt::print("  points dropped: {} non-finite, {} out of range\n", non_finite, out_of_range);
-  nlohmann::json summary = {{"input", opt.input},  {"scans", poses.size()}, {"distance_m", distance},
-                            {"registered", poses.size() - failed}, {"recovered", recovered},
-                            {"not_registered", failures}, {"loop_closure", opt.loop_closure}};
-  if (mapper) {
+             r.distance, poses.size() / std::max(r.busy_seconds, 1e-9));
+  fmt::print("  registered   {} ({} after a wide retry)\n", r.registered(), r.recovered);
+  for (const auto& [reason, n] : r.failures) fmt::print("  not registered ({}): {} (prediction used)\n", reason, n);
+  fmt::print("  points dropped: {} non-finite, {} out of range\n", r.non_finite_points, r.out_of_range_points);
+  nlohmann::json summary = {{"input", opt.input},  {"scans", poses.size()}, {"distance_m", r.distance},
+                            {"registered", r.registered()}, {"recovered", r.recovered},
+                            {"not_registered", r.failures}, {"loop_closure", opt.loop_closure}};
+  if (const LoopClosingMapper* mapper = r.loop_closer.get()) {
     fmt::print("  keyframes    {}\n  loops        {} accepted, {} rejected", mapper->keyframes().size(),
                mapper->loops().size(), mapper->rejected_total());
     nlohmann::json rejected = nlohmann::json::object(), loops = nlohmann::json::array();

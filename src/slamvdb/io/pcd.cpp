@@ -13,6 +13,7 @@
 #include <string>
 
 #include "slamvdb/core/error.hpp"
+#include "slamvdb/core/regular_file.hpp"
 
 namespace slamvdb {
 
@@ -31,6 +32,8 @@ struct Header {
   std::vector<Field> fields;
   std::size_t width = 0, height = 1, points = 0, point_size = 0;
   std::string data;
+  std::size_t data_offset = 0;  // bytes into the file where the data start
+  std::size_t lines = 0;        // lines of the header (the data's first line is lines + 1)
 };
 
 std::vector<std::string> split(const std::string& line) {
@@ -50,13 +53,23 @@ std::size_t parse_count(const std::string& text, const fs::path& file, const std
   return v;
 }
 
-Header read_header(std::istream& in, const fs::path& file) {
+// The next line of `text` from `at` (without its end of line); moves `at` past it.
+bool next_pcd_line(std::string_view text, std::size_t& at, std::string& line) {
+  if (at >= text.size()) return false;
+  const std::size_t end = std::min(text.find('\n', at), text.size());
+  line.assign(text.substr(at, end - at));
+  if (!line.empty() && line.back() == '\r') line.pop_back();
+  at = end + 1;
+  return true;
+}
+
+Header read_header(std::string_view text, const fs::path& file) {
   Header h;
   std::vector<std::string> names, sizes, types, counts;
   bool have_points = false;
   std::string line;
-  while (std::getline(in, line)) {
-    if (!line.empty() && line.back() == '\r') line.pop_back();
+  while (next_pcd_line(text, h.data_offset, line)) {
+    ++h.lines;
     const auto words = split(line);
     if (words.empty() || words[0][0] == '#') continue;
     const std::string& key = words[0];
@@ -75,6 +88,7 @@ Header read_header(std::istream& in, const fs::path& file) {
     } else
       throw Error(fmt::format("{}: unexpected PCD header line '{}'", file, line));
   }
+  h.data_offset = std::min(h.data_offset, text.size());
   if (h.data.empty()) throw Error(fmt::format("{}: not a PCD file (no DATA line in the header)", file));
   if (h.data != "ascii" && h.data != "binary" && h.data != "binary_compressed")
     throw Error(fmt::format("{}: unknown PCD DATA '{}' (ascii, binary or binary_compressed)", file, h.data));
@@ -136,13 +150,68 @@ const Field* find_field(const Header& h, std::initializer_list<const char*> name
 }
 }  // namespace
 
-// The largest PCD payload read: 256 MiB (16.7 M points of x y z intensity t), as for scans.
+// The largest PCD payload read: 256 MiB (16.7 M points of x y z intensity t), as for scans; an
+// ascii file may be up to 1 GiB of text.
 constexpr std::uint64_t kMaxPcdDataBytes = std::uint64_t{256} << 20;
 
+namespace {
+// DATA ascii: one point per line (PCD v0.7), exactly as many values as FIELDS x COUNT give, and
+// exactly POINTS lines; blank lines are ignored. A row with more or fewer values would shift every
+// later point, and rows beyond POINTS would be lost: both are errors naming the line.
+std::vector<double> parse_ascii_points(std::string_view text, const Header& h, std::size_t values_per_point,
+                                       const fs::path& file) {
+  const std::size_t remaining = text.size() - h.data_offset;
+  // At least two characters (a digit and a separator) per value.
+  if (values_per_point != 0 && h.points > remaining / 2 / values_per_point)
+    throw Error(fmt::format("{}: truncated PCD data: {} points of {} values cannot fit in the {} bytes left", file,
+                            h.points, values_per_point, remaining));
+  std::vector<double> values;
+  values.reserve(h.points * values_per_point);
+  std::size_t at = h.data_offset, line_number = h.lines, points = 0;
+  std::string line;
+  while (next_pcd_line(text, at, line)) {
+    ++line_number;
+    const auto words = split(line);
+    if (words.empty()) continue;
+    if (points == h.points)
+      throw Error(fmt::format("{}:{}: PCD data go on after the {} points the header declares (POINTS = WIDTH x "
+                              "HEIGHT = {} x {}); the header does not match the data",
+                              file, line_number, h.points, h.width, h.height));
+    if (words.size() != values_per_point)
+      throw Error(fmt::format("{}:{}: PCD point {} has {} values, but the header's FIELDS and COUNT give {} per point",
+                              file, line_number, points, words.size(), values_per_point));
+    for (const std::string& word : words) {
+      double v = 0.0;
+      if (word == "nan" || word == "NaN" || word == "-nan") v = std::numeric_limits<double>::quiet_NaN();
+      else {
+        const auto [end, ec] = std::from_chars(word.data(), word.data() + word.size(), v);
+        if (ec != std::errc() || end != word.data() + word.size())
+          throw Error(fmt::format("{}:{}: PCD value '{}' of point {} is not a number", file, line_number, word, points));
+      }
+      values.push_back(v);
+    }
+    ++points;
+  }
+  if (points < h.points)
+    throw Error(fmt::format("{}: truncated PCD data: {} of the {} points the header declares", file, points,
+                            h.points));
+  return values;
+}
+
+// Bytes after the data the header declares: the header's POINTS (= WIDTH x HEIGHT) is smaller
+// than the data, whose rest would be lost unseen.
+void refuse_trailing_bytes(std::size_t end, std::size_t size, const Header& h, const fs::path& file) {
+  if (end < size)
+    throw Error(fmt::format("{}: {} bytes follow the {} points the header declares (POINTS = WIDTH x HEIGHT = {} x {}; "
+                            "data end at byte {}); the header does not match the data",
+                            file, size - end, h.points, h.width, h.height, end));
+}
+}  // namespace
+
 PcdCloud read_pcd(const fs::path& file) {
-  std::ifstream in(file, std::ios::binary);
-  if (!in) throw Error(fmt::format("cannot open PCD file {}", file));
-  const Header h = read_header(in, file);
+  // Read whole through RegularFile: a FIFO or device named .pcd is an error, not a read that blocks.
+  const std::string text = read_regular_file(file, "PCD file");
+  const Header h = read_header(text, file);
   const Field* fx = find_field(h, {"x"});
   const Field* fy = find_field(h, {"y"});
   const Field* fz = find_field(h, {"z"});
@@ -159,9 +228,8 @@ PcdCloud read_pcd(const fs::path& file) {
 
   // Sizes from the header are checked against the bytes that follow before anything is allocated
   // (a header claiming 2^32 points made a 4 GB allocation; found by fuzz_pcd).
-  const std::uint64_t file_bytes = fs::file_size(file);
-  const std::uint64_t at = static_cast<std::uint64_t>(std::max<std::streamoff>(0, in.tellg()));
-  const std::uint64_t remaining = file_bytes > at ? file_bytes - at : 0;
+  const std::size_t at = h.data_offset;
+  const std::size_t remaining = text.size() - at;
   if (h.point_size != 0 && h.points > remaining / h.point_size && h.data == "binary")
     throw Error(fmt::format("{}: truncated PCD data: {} points of {} bytes need more than the {} bytes left", file,
                             h.points, h.point_size, remaining));
@@ -169,47 +237,25 @@ PcdCloud read_pcd(const fs::path& file) {
     throw Error(fmt::format("{}: PCD data of {} points x {} bytes is above the {} MiB limit", file, h.points,
                             h.point_size, kMaxPcdDataBytes >> 20));
   if (h.data == "ascii") {
-    // At least two characters (a digit and a separator) per value.
-    if (values_per_point != 0 && h.points > remaining / 2 / values_per_point)
-      throw Error(fmt::format("{}: truncated PCD data: {} points of {} values cannot fit in the {} bytes left", file,
-                              h.points, values_per_point, remaining));
-    ascii_values.reserve(h.points * values_per_point);
-    std::string word;
-    while (ascii_values.size() < h.points * values_per_point && in >> word) {
-      double v = 0.0;
-      if (word == "nan" || word == "NaN" || word == "-nan") v = std::numeric_limits<double>::quiet_NaN();
-      else {
-        const auto [end, ec] = std::from_chars(word.data(), word.data() + word.size(), v);
-        if (ec != std::errc() || end != word.data() + word.size())
-          throw Error(fmt::format("{}: PCD value '{}' of point {} is not a number", file, word,
-                                  ascii_values.size() / values_per_point));
-      }
-      ascii_values.push_back(v);
-    }
-    if (ascii_values.size() < h.points * values_per_point)
-      throw Error(fmt::format("{}: truncated PCD data: {} of {} values for {} points", file, ascii_values.size(),
-                              h.points * values_per_point, h.points));
+    ascii_values = parse_ascii_points(text, h, values_per_point, file);
   } else if (h.data == "binary") {
-    bytes.resize(h.points * h.point_size);
-    in.read(reinterpret_cast<char*>(bytes.data()), static_cast<std::streamsize>(bytes.size()));
-    if (static_cast<std::size_t>(in.gcount()) != bytes.size())
-      throw Error(fmt::format("{}: truncated PCD data: {} of {} bytes for {} points", file, in.gcount(), bytes.size(),
-                              h.points));
+    const std::size_t size = h.points * h.point_size;
+    bytes.assign(text.begin() + static_cast<std::ptrdiff_t>(at), text.begin() + static_cast<std::ptrdiff_t>(at + size));
+    refuse_trailing_bytes(at + size, text.size(), h, file);
   } else {
     uint32_t sizes[2] = {0, 0};
-    in.read(reinterpret_cast<char*>(sizes), sizeof sizes);
-    if (in.gcount() != sizeof sizes) throw Error(fmt::format("{}: truncated PCD data: no compressed sizes", file));
+    if (remaining < sizeof sizes) throw Error(fmt::format("{}: truncated PCD data: no compressed sizes", file));
+    std::memcpy(sizes, text.data() + at, sizeof sizes);
     if (sizes[1] != h.points * h.point_size)
       throw Error(fmt::format("{}: PCD compressed block would hold {} bytes, expected {} for {} points", file,
                               sizes[1], h.points * h.point_size, h.points));
-    if (sizes[0] > remaining)
-      throw Error(fmt::format("{}: truncated PCD data: compressed block of {} bytes, {} left", file, sizes[0], remaining));
-    std::vector<unsigned char> packed(sizes[0]);
-    in.read(reinterpret_cast<char*>(packed.data()), sizes[0]);
-    if (static_cast<std::size_t>(in.gcount()) != packed.size())
-      throw Error(fmt::format("{}: truncated PCD data: {} of {} compressed bytes", file, in.gcount(), packed.size()));
+    if (sizes[0] > remaining - sizeof sizes)
+      throw Error(fmt::format("{}: truncated PCD data: compressed block of {} bytes, {} left", file, sizes[0],
+                              remaining - sizeof sizes));
+    const char* packed = text.data() + at + sizeof sizes;
+    refuse_trailing_bytes(at + sizeof sizes + sizes[0], text.size(), h, file);
     bytes.resize(sizes[1]);
-    if (sizes[1] > 0 && lzf_decompress(packed.data(), sizes[0], bytes.data(), sizes[1]) != sizes[1])
+    if (sizes[1] > 0 && lzf_decompress(packed, sizes[0], bytes.data(), sizes[1]) != sizes[1])
       throw Error(fmt::format("{}: corrupt PCD compressed data (LZF)", file));
   }
 

@@ -2,11 +2,13 @@
 
 #include <fmt/format.h>
 #include <gtest/gtest.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <cmath>
 #include <cstdlib>
 #include <fstream>
+#include <iterator>
 
 #include "slamvdb/testing/error_of.hpp"
 #include "slamvdb/testing/temp_dir.hpp"
@@ -108,7 +110,71 @@ TEST(Pcd, MalformedFilesGiveErrorsNamingTheFile) {
   expect_error(write("type.pcd", "FIELDS x y z\nSIZE 4 4 3\nTYPE F F F\nWIDTH 1\nDATA ascii\n"), "unsupported");
   expect_error(write("lzf.pcd", header + "DATA binary_compressed\n" + std::string("\x08\0\0\0\x30\0\0\0", 8) +
                                     std::string(8, '\xff')), "LZF");
-  expect_error(dir.path / "missing.pcd", "cannot open");
+  expect_error(dir.path / "missing.pcd", "does not exist");
+}
+
+// The header's POINTS (= WIDTH x HEIGHT, PCD v0.7) must match the data: points beyond it would be
+// lost unseen, so they are an error naming the file and where the extra data start, in every
+// encoding; so is an ascii row with more or fewer values than FIELDS x COUNT, which would shift
+// every later point.
+TEST(Pcd, DataThatDoNotMatchTheHeaderAreErrorsSayingWhere) {
+  TempDir dir;
+  PcdCloud four;
+  for (int i = 0; i < 4; ++i) four.points.emplace_back(1.0f * i, 2.0f, 3.0f);
+  const auto declare_three = [&](const std::filesystem::path& file) {
+    std::ifstream in(file, std::ios::binary);
+    std::string bytes((std::istreambuf_iterator<char>(in)), {});
+    for (const std::string key : {"WIDTH 4\n", "POINTS 4\n"}) {
+      const auto at = bytes.find(key);
+      ASSERT_NE(at, std::string::npos) << key;
+      bytes.replace(at, key.size(), key.substr(0, key.size() - 2) + "3\n");
+    }
+    std::ofstream(file, std::ios::binary | std::ios::trunc) << bytes;
+  };
+  const auto expect_error = [&](const std::filesystem::path& f, std::initializer_list<const char*> parts) {
+    const std::string e = error_of([&] { read_pcd(f); });
+    EXPECT_NE(e.find(f.string()), std::string::npos) << e;
+    for (const char* part : parts) EXPECT_NE(e.find(part), std::string::npos) << "'" << part << "' in: " << e;
+  };
+  const auto ascii = dir.path / "ascii.pcd", binary = dir.path / "binary.pcd", packed = dir.path / "packed.pcd";
+  write_pcd(ascii, four, PcdEncoding::kAscii);
+  write_pcd(binary, four, PcdEncoding::kBinary);
+  write_pcd(packed, four, PcdEncoding::kBinaryCompressed);
+  for (const auto& f : {ascii, binary, packed}) ASSERT_EQ(read_pcd(f).points.size(), 4u);
+  for (const auto& f : {ascii, binary, packed}) declare_three(f);
+  // write_pcd's header has 11 lines, so the fourth point is on line 15.
+  expect_error(ascii, {":15:", "go on after the 3 points", "WIDTH x HEIGHT = 3 x 1"});
+  expect_error(binary, {"12 bytes follow the 3 points", "WIDTH x HEIGHT = 3 x 1"});
+  expect_error(packed, {"compressed block would hold 48 bytes, expected 36 for 3 points"});
+
+  // A compressed block with bytes after it.
+  write_pcd(packed, four, PcdEncoding::kBinaryCompressed);
+  std::ofstream(packed, std::ios::binary | std::ios::app) << "junk";
+  expect_error(packed, {"4 bytes follow the 4 points"});
+
+  const std::string header = "FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nWIDTH 3\nHEIGHT 1\nPOINTS 3\nDATA ascii\n";
+  const auto rows = [&](const std::string& name, const std::string& data) {
+    std::ofstream(dir.path / name, std::ios::binary) << header << data;
+    return dir.path / name;
+  };
+  expect_error(rows("extra.pcd", "10 20 30\n40 50 60 70\n80 90 100\n"), {":9:", "point 1 has 4 values", "give 3 per point"});
+  expect_error(rows("missing.pcd", "10 20 30\n40 50\n60 70 80\n"), {":9:", "point 1 has 2 values"});
+  expect_error(rows("word.pcd", "10 20 30\n40 x 60\n70 80 90\n"), {":9:", "'x' of point 1 is not a number"});
+  expect_error(rows("fewer.pcd", "10 20 30\n40 50 60\n"), {"truncated", "2 of the 3 points"});
+  // Blank lines and CRLF ends are not rows.
+  const PcdCloud blank = read_pcd(rows("blank.pcd", "1 2 3\r\n\n4 5 6\n  \n7 8 9\n\n"));
+  ASSERT_EQ(blank.points.size(), 3u);
+  EXPECT_EQ(blank.points[2], Vec3f(7, 8, 9));
+}
+
+// A FIFO named .pcd is refused (opened without waiting for a writer), not read until one comes.
+TEST(Pcd, AFifoIsAnErrorNotAHang) {
+  TempDir dir;
+  const auto fifo = dir.path / "scan.pcd";
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+  const std::string e = error_of([&] { read_pcd(fifo); });
+  EXPECT_NE(e.find("FIFO"), std::string::npos) << e;
+  EXPECT_NE(e.find(fifo.string()), std::string::npos) << e;
 }
 
 // PCL itself (Debian's pcl-tools, optional: ~150 MB, so not in setup.sh) converts our binary file

@@ -1,6 +1,7 @@
 #include "slamvdb/pipeline/lidar_tracking.hpp"
 
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 
 #include <Eigen/Geometry>
 #include <chrono>
@@ -56,6 +57,7 @@ Pose LidarTracker::track(double stamp, const std::vector<Vec3f>& points, const s
   result_.non_finite_points += r.non_finite_points;
   result_.out_of_range_points += r.out_of_range_points;
   result_.recovered += r.recovered && r.status == localization::ScanStatus::kOk;
+  result_.empty_scans += points.empty();
   if (r.status != localization::ScanStatus::kOk) {
     ++result_.failures[to_string(r.status)];
     result_.problems.push_back(fmt::format("scan {} ({}): {}: {}; constant-velocity prediction used",
@@ -71,6 +73,24 @@ Pose LidarTracker::track(double stamp, const std::vector<Vec3f>& points, const s
   result_.stamps.push_back(stamp);
   result_.T_odom_sensor.push_back(r.T_odom_sensor);
   return r.T_odom_sensor;
+}
+
+void LidarTracker::require_registered(const std::string& input, std::size_t unreadable) const {
+  if (result_.registered() > 0) return;
+  std::vector<std::string> reasons;
+  if (unreadable) reasons.push_back(fmt::format("{} unreadable", unreadable));
+  if (result_.empty_scans) reasons.push_back(fmt::format("{} empty", result_.empty_scans));
+  for (const auto& [reason, n] : result_.failures) {
+    const std::size_t count = reason == localization::to_string(localization::ScanStatus::kTooFewPoints)
+                                  ? n - std::min(n, result_.empty_scans)
+                                  : n;
+    if (count) reasons.push_back(fmt::format("{} {}", count, reason));
+  }
+  const auto& o = options_.odometry;
+  throw Error(fmt::format("{}: no scan could be registered ({} scans{}{}); a scan needs at least {} valid points "
+                          "(finite, {} to {} m from the sensor)",
+                          input, result_.stamps.size() + unreadable, reasons.empty() ? "" : ": ",
+                          fmt::join(reasons, ", "), o.min_points, o.min_range, o.max_range));
 }
 
 TrackingResult track_scans(const std::vector<ScanFile>& scans, const TrackingOptions& options,

@@ -34,6 +34,7 @@ struct TrackingResult {
   std::map<std::string, std::size_t> failures;  // scans not registered, by reason
   std::vector<std::string> problems;            // one line per such scan
   std::size_t non_finite_points = 0, out_of_range_points = 0, recovered = 0;
+  std::size_t empty_scans = 0;  // scans without a single point (among those with too few valid points)
   double distance = 0.0;        // odometry path length (m)
   double busy_seconds = 0.0;    // registration and loop closure, not file reading
   std::unique_ptr<localization::LoopClosingMapper> loop_closer;  // when options.loop_closure
@@ -55,6 +56,11 @@ class LidarTracker {
   // Error when more than max_consecutive_failures scans in a row fail.
   Pose track(double stamp, const std::vector<Vec3f>& points, const std::vector<float>* point_times,
              const std::string& name);
+  // Throws Error naming `input` when not one scan could be registered (the first one with enough
+  // points, which defines the odometry frame, counts): every pose would be a guess. The message
+  // gives the scans by reason (empty, too few valid points, registration failed, and the
+  // `unreadable` ones the caller could not load) and what a scan needs.
+  void require_registered(const std::string& input, std::size_t unreadable = 0) const;
   const TrackingResult& result() const { return result_; }
   TrackingResult take_result() { return std::move(result_); }
 

@@ -44,6 +44,9 @@ Mapper::Mapper(const MapperOptions& options, SemanticMap map, FeatureSource* fea
     : options_(options), map_(std::move(map)), features_(features), store_(store), fusion_(options.fusion),
       last_scan_stamp_(-std::numeric_limits<double>::infinity()),
       last_image_stamp_(-std::numeric_limits<double>::infinity()) {
+  if (options_.max_queued_items < 1 || !(options_.max_wait_seconds >= 0))  // else a caller could wait for ever
+    throw Error(fmt::format("mapper queue of {} items, wait of {} s: expected at least 1 item and a wait >= 0",
+                            options_.max_queued_items, options_.max_wait_seconds));
   if (options_.unload_radius > 0 && !store_)
     throw Error("submaps can leave memory (unload radius) only when they are kept in a store (a map file)");
   resume_after_ = resume_point(map_);
@@ -56,13 +59,29 @@ Mapper::~Mapper() {
     std::lock_guard lock(mutex_);
     stopping_ = true;
   }
-  work_cv_.notify_all();
-  room_cv_.notify_all();
+  wake_all();
   if (mapping_thread_.joinable()) mapping_thread_.join();
   if (inference_thread_.joinable()) inference_thread_.join();
 }
 
 // ---- input ----
+
+bool Mapper::never_covered(double stamp) const {
+  if (!trajectory_.empty() && stamp < trajectory_.front_stamp()) return true;
+  return poses_ended_ && (trajectory_.empty() || stamp > trajectory_.back_stamp());
+}
+
+void Mapper::count_outside_pose_range(const Item& item) {
+  ++(item.is_scan ? report_.scans_without_pose : report_.images_outside_pose_range);
+  report_.add_problem(fmt::format("{}: outside the pose time range", item.name()));
+}
+
+void Mapper::wake_all() {
+  work_cv_.notify_all();
+  encoder_cv_.notify_all();
+  room_cv_.notify_all();
+  idle_cv_.notify_all();
+}
 
 bool Mapper::admit(std::unique_lock<std::mutex>& lock, std::unique_ptr<Item> item) {
   const bool scan = item->is_scan;
@@ -70,24 +89,31 @@ bool Mapper::admit(std::unique_lock<std::mutex>& lock, std::unique_ptr<Item> ite
     const std::size_t count = scans_.size() + images_.size();
     return count + 1 > options_.max_queued_items || (count > 0 && queued_bytes_ + item->bytes > options_.max_queued_bytes);
   };
-  // Replay waits for room. While the mapper waits for a pose, only another thread can end the
-  // wait: after max_wait_seconds of that the item is dropped rather than waiting for ever.
+  // Replay waits for room, but not for an item no pose can cover (counted below, it takes none),
+  // and not once the mapper has waited max_wait_seconds for a pose: only a caller could give it.
   if (options_.policy == QueuePolicy::kReplay) {
-    const auto limit = std::chrono::duration<double>(options_.max_wait_seconds);
-    auto stalled_since = Clock::now();
-    while (full() && !stopping_ && !closing_) {
-      room_cv_.wait_for(lock, std::chrono::milliseconds(10));
-      if (!waiting_for_pose_) stalled_since = Clock::now();
-      else if (Clock::now() - stalled_since >= limit) break;
+    const auto limit = std::chrono::duration_cast<Clock::duration>(
+        std::chrono::duration<double>(std::min(options_.max_wait_seconds, 1e9)));
+    while (full() && !stopping_ && !closing_ && !error_ && !never_covered(item->stamp)) {
+      if (!waiting_for_pose_since_) room_cv_.wait(lock);  // the mapper is working: room will come
+      else if (Clock::now() - *waiting_for_pose_since_ >= limit) break;
+      else room_cv_.wait_until(lock, *waiting_for_pose_since_ + limit);
     }
   }
   if (error_) return false;  // the mapping thread failed: finish() reports why
   if (stopping_ || closing_) throw Error("the mapper has finished; it takes no more input");
+  if (never_covered(item->stamp)) {
+    count_outside_pose_range(*item);
+    return false;
+  }
   if (full()) {
     ++(scan ? report_.scans_queue_full : report_.inference.dropped_queue_full);
-    report_.add_problem(fmt::format("{}: dropped, the mapper's queue is full ({} items, {:.0f} MB){}", item->name(),
-                                    scans_.size() + images_.size(), queued_bytes_ / 1e6,
-                                    waiting_for_pose_ ? " and waits for a pose that has not come" : ""));
+    report_.add_problem(fmt::format(
+        "{}: dropped, the mapper's queue is full ({} items, {:.0f} MB){}", item->name(), scans_.size() + images_.size(),
+        queued_bytes_ / 1e6,
+        waiting_for_pose_since_ ? fmt::format(" and has waited {:.1f} s for a pose that has not come",
+                                              seconds_since(*waiting_for_pose_since_))
+                                : ""));
     return false;
   }
   queued_bytes_ += item->bytes;
@@ -95,7 +121,7 @@ bool Mapper::admit(std::unique_lock<std::mutex>& lock, std::unique_ptr<Item> ite
   (scan ? scans_ : images_).push_back(std::move(item));
   report_.peak_queued_items = std::max(report_.peak_queued_items, scans_.size() + images_.size());
   report_.peak_queued_bytes = std::max(report_.peak_queued_bytes, queued_bytes_);
-  work_cv_.notify_all();
+  wake_all();
   return true;
 }
 
@@ -190,7 +216,8 @@ bool Mapper::add_pose(double stamp, const Pose& T_world_sensor) {
   }
   trajectory_.append(stamp, T_world_sensor);
   idle_ = false;
-  work_cv_.notify_all();
+  waiting_for_pose_since_.reset();  // the mapping thread starts the clock again if it still waits
+  wake_all();
   return true;
 }
 
@@ -203,7 +230,7 @@ void Mapper::end_poses() {
   std::lock_guard lock(mutex_);
   poses_ended_ = true;
   idle_ = false;
-  work_cv_.notify_all();
+  wake_all();
 }
 
 void Mapper::add_unreadable_scan(const std::string& problem) {
@@ -231,7 +258,7 @@ void Mapper::inference_loop() {
   std::unique_lock lock(mutex_);
   for (;;) {
     Item* job = nullptr;
-    work_cv_.wait(lock, [&] {
+    encoder_cv_.wait(lock, [&] {
       if (stopping_) return true;
       job = nullptr;
       for (auto& item : images_)
@@ -242,6 +269,7 @@ void Mapper::inference_loop() {
       if (!job) return false;
       // Results count against the bound too (a spare buffer it would fill again counts once);
       // the mapper's very next item is always encoded, or nothing could ever free the queue.
+      // Both change when the mapping thread takes an item, which wakes this thread (wake_all).
       const std::size_t reusable = spare_features_.empty() ? 0 : spare_features_.back().bytes();
       return queued_bytes_ - reusable <= options_.max_queued_bytes || job == next_item();
     });
@@ -272,7 +300,7 @@ void Mapper::inference_loop() {
     job->features = std::move(features);
     job->error = std::move(error);
     job->state = Item::State::kReady;
-    work_cv_.notify_all();
+    wake_all();
   }
 }
 
@@ -280,15 +308,11 @@ void Mapper::mapping_loop() {
   std::unique_lock lock(mutex_);
   while (!stopping_) {
     Item* next = next_item();
+    if (!next || next->state != Item::State::kReady) waiting_for_pose_since_.reset();
     if (!next) {
-      if (closing_) {
-        idle_ = true;
-        idle_cv_.notify_all();
-        return;
-      }
-      waiting_for_pose_ = false;
       idle_ = true;
       idle_cv_.notify_all();
+      if (closing_) return;
       work_cv_.wait(lock);
       continue;
     }
@@ -297,23 +321,24 @@ void Mapper::mapping_loop() {
       continue;
     }
     const std::optional<Pose> pose = trajectory_.at(next->stamp);
-    if (!pose && !closing_ && !poses_ended_ && (trajectory_.empty() || next->stamp > trajectory_.back_stamp())) {
-      waiting_for_pose_ = true;  // a later pose will cover it
+    if (!pose && !closing_ && !never_covered(next->stamp)) {  // a later pose will cover it
+      if (!waiting_for_pose_since_) {
+        waiting_for_pose_since_ = Clock::now();
+        room_cv_.notify_all();  // callers waiting for room now wait at most max_wait_seconds
+      }
       idle_ = true;
       idle_cv_.notify_all();
-      room_cv_.notify_all();
       work_cv_.wait(lock);
       continue;
     }
-    waiting_for_pose_ = false;
+    waiting_for_pose_since_.reset();
     auto& queue = next->is_scan ? scans_ : images_;
     std::unique_ptr<Item> item = std::move(queue.front());
     queue.pop_front();
     queued_bytes_ -= item->bytes;
-    room_cv_.notify_all();
+    wake_all();  // room for callers; a new next item and bound for the encoder
     if (!pose) {  // before the first pose, or after the last one at the end of the run
-      ++(item->is_scan ? report_.scans_without_pose : report_.images_outside_pose_range);
-      report_.add_problem(fmt::format("{}: outside the pose time range", item->name()));
+      count_outside_pose_range(*item);
       continue;
     }
     lock.unlock();
@@ -323,9 +348,7 @@ void Mapper::mapping_loop() {
       lock.lock();
       error_ = std::current_exception();
       stopping_ = true;
-      work_cv_.notify_all();
-      room_cv_.notify_all();
-      idle_cv_.notify_all();
+      wake_all();
       return;
     }
     lock.lock();

@@ -11,9 +11,17 @@
 // full (kDropWhenFull), no pose ever covering its stamp, a stamp not after the previous one of its
 // stream (out of order, duplicate), already in the map a run resumes.
 //
+// Waiting: poses only ever extend the trajectory at its end, so an item before the first pose, or
+// after the last once end_poses() was called, can never be covered; it is counted at once and never
+// waits for room (nor holds any). Whatever else waits for a pose is ended by a pose or end_poses();
+// a caller that gives the poses itself must give each one no later than the first item it covers
+// (a replay knows the whole trajectory: mapping_pipeline.cpp), or a full queue can only end in
+// max_wait_seconds.
+//
 // With a SubmapStore, each finished submap is handed to it at once (a map file that then holds it
 // whatever happens later), and finished submaps farther than unload_radius from the robot leave
 // memory and are read back when the robot comes near again or a correction or merge needs them.
+#include <chrono>
 #include <condition_variable>
 #include <deque>
 #include <map>
@@ -40,9 +48,10 @@ struct MapperOptions {
   CameraModel camera;                       // intrinsics at full image resolution
   Pose T_lidar_camera = Pose::Identity();   // the camera in the LiDAR frame (poses are the LiDAR's)
   QueuePolicy policy = QueuePolicy::kReplay;
-  // kReplay: how long a caller waits for room while the mapper itself waits for a pose. A pose
-  // from another thread ends such a wait; one that only the waiting caller could give never
-  // would, so after this the item is dropped (counted as queue full) instead of hanging for ever.
+  // kReplay: how long the mapper may wait for a pose while callers wait for room. A pose from
+  // another thread ends such a wait; one that only a waiting caller could give never would, so
+  // once the mapper has waited this long since it last got a pose (one clock, not one per item),
+  // items that find the queue full are dropped at once (counted as queue full) until a pose comes.
   double max_wait_seconds = 60.0;
   std::size_t max_queued_items = 16;                  // scans + images waiting, feature maps included
   std::size_t max_queued_bytes = std::size_t{1} << 30;  // their points and feature maps
@@ -68,7 +77,7 @@ class Mapper {
   bool add_features(double stamp, FeatureMap features);  // features computed elsewhere
   bool add_pose(double stamp, const Pose& T_world_sensor);  // never waits
   // No more poses will come (e.g. a replay has given its last): items after the last pose are
-  // counted as without a pose at once instead of waiting.
+  // counted as outside the pose range at once instead of waiting.
   void end_poses();
   // An item the caller could not even read (a corrupt scan file, ...): counted as failed.
   void add_unreadable_scan(const std::string& problem);
@@ -99,6 +108,14 @@ class Mapper {
   // resumed map); nothing when it is to be queued.
   std::optional<bool> screen(bool scan, double stamp);
   bool admit(std::unique_lock<std::mutex>& lock, std::unique_ptr<Item> item);
+  // No pose can ever cover `stamp`: before the first pose (the trajectory only grows at its end),
+  // or after the last one once the poses have ended.
+  bool never_covered(double stamp) const;
+  void count_outside_pose_range(const Item& item);
+  // Every state change a waiter may be waiting for (an item queued or taken, a feature map done,
+  // a pose, the end of poses, finishing, an error) wakes every waiter; each rechecks its own
+  // condition, so no change can be missed by the thread it concerns.
+  void wake_all();
   void mapping_loop();
   void inference_loop();
   Item* next_item() const;
@@ -114,12 +131,17 @@ class Mapper {
   double resume_after_ = -std::numeric_limits<double>::infinity();
 
   mutable std::mutex mutex_;  // everything below up to store_mutex_
-  std::condition_variable work_cv_, room_cv_, idle_cv_;
+  // work_cv_: the mapping thread; encoder_cv_: the inference thread; room_cv_: callers waiting
+  // for room; idle_cv_: wait_until_idle.
+  std::condition_variable work_cv_, encoder_cv_, room_cv_, idle_cv_;
   std::deque<std::unique_ptr<Item>> scans_, images_;
   std::size_t queued_bytes_ = 0;
   Trajectory trajectory_;
   double last_scan_stamp_, last_image_stamp_;
-  bool closing_ = false, stopping_ = false, waiting_for_pose_ = false, poses_ended_ = false;
+  bool closing_ = false, stopping_ = false, poses_ended_ = false;
+  // Since when the mapping thread has waited for a pose to cover its next item (reset by every
+  // pose and every item taken); nothing while it does not wait for one.
+  std::optional<std::chrono::steady_clock::time_point> waiting_for_pose_since_;
   // The mapping thread waits with nothing it can process; any new input clears it.
   bool idle_ = false;
   PipelineReport report_;

@@ -74,15 +74,14 @@ SemanticMap Mapper::finish() {
     std::lock_guard lock(mutex_);
     if (closing_) throw Error("the mapper has already finished");
     closing_ = true;
+    wake_all();
   }
-  work_cv_.notify_all();
-  room_cv_.notify_all();
   mapping_thread_.join();
   {
     std::lock_guard lock(mutex_);
     stopping_ = true;
+    wake_all();
   }
-  work_cv_.notify_all();
   if (inference_thread_.joinable()) inference_thread_.join();
   if (error_) std::rethrow_exception(error_);
   const std::optional<int> active = map_.active_submap_id();

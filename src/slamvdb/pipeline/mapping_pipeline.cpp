@@ -54,12 +54,22 @@ SemanticMap continue_map(SemanticMap start, const Sequence& seq, FeatureSource* 
 
   Mapper mapper(mapper_options(seq, options), std::move(start), features, options.store);
   // The three streams in time order; at equal stamps a pose first (it covers the data of its
-  // time), then the scan, then the image.
+  // time), then the scan, then the image. The whole trajectory is known, so before each scan or
+  // image every pose up to the first one at or after its stamp is given (earlier than its own
+  // time if need be): the mapper never waits for a pose this thread holds back, which with a full
+  // queue would wait for ever (a trajectory starting after the data, or with a gap longer than the
+  // queue). The end of the poses is announced with the last one.
   std::size_t pi = 0, si = 0, ii = 0;
-  const double t0 = std::min({poses.front_stamp(), num_scans ? seq.scans[0].stamp : 1e300,
-                              num_images ? seq.images[0].stamp : 1e300});
+  const auto give_pose = [&] {
+    mapper.add_pose(poses.stamps()[pi], poses.poses()[pi]);
+    if (++pi == poses.size()) mapper.end_poses();  // what comes after the last pose needs no wait
+  };
+  const auto give_poses_covering = [&](double stamp) {
+    while (pi < poses.size() && (pi == 0 || poses.stamps()[pi - 1] < stamp)) give_pose();
+  };
+  const double t0 = std::min(num_scans ? seq.scans[0].stamp : 1e300, num_images ? seq.images[0].stamp : 1e300);
   double last_frame = t0;
-  while (pi < poses.size() || si < num_scans || ii < num_images) {
+  while (si < num_scans || ii < num_images) {
     const double tp = pi < poses.size() ? poses.stamps()[pi] : 1e300;
     const double ts = si < num_scans ? seq.scans[si].stamp : 1e300;
     const double ti = ii < num_images ? seq.images[ii].stamp : 1e300;
@@ -70,10 +80,10 @@ SemanticMap continue_map(SemanticMap start, const Sequence& seq, FeatureSource* 
       last_frame = t;
     }
     if (tp == t) {
-      mapper.add_pose(tp, poses.poses()[pi++]);
-      if (pi == poses.size()) mapper.end_poses();  // what comes after the last pose needs no wait
+      give_pose();
     } else if (ts == t) {
       const ScanRecord& rec = seq.scans[si++];
+      give_poses_covering(rec.stamp);
       try {
         mapper.add_scan(rec.stamp, read_scan(rec).points);
       } catch (const Error& e) {
@@ -81,10 +91,12 @@ SemanticMap continue_map(SemanticMap start, const Sequence& seq, FeatureSource* 
       }
       if (progress) progress(si, num_scans);
     } else {
+      give_poses_covering(ti);
       mapper.add_image(seq.images[ii++]);
     }
     if (mapper.failed()) break;  // finish() names the error
   }
+  while (pi < poses.size()) give_pose();  // no data left to wait for them (--realtime ends with the data)
   SemanticMap map = mapper.finish();
   report = mapper.report();
   report.seconds_total = std::chrono::duration<double>(Clock::now() - t_start).count();

@@ -1,7 +1,8 @@
 #pragma once
 // Replays a recorded sequence through the streaming Mapper: scans, images and poses are given to
-// it in time order, as a robot would deliver them (a pose no earlier than the sensor data it
-// covers), from the sequence's ground truth or another pose source.
+// it in time order, from the sequence's ground truth or another pose source, except that a pose
+// is given early when a scan or image needs it (the replay knows the whole trajectory, so the
+// mapper never waits for a pose, whatever part of the data the trajectory covers).
 #include <functional>
 #include <string>
 #include <vector>

@@ -60,6 +60,7 @@ Trajectory OdometryPoses::trajectory(const Sequence& sequence) const {
   }
   const TrackingResult& r = tracker.result();
   if (r.stamps.empty()) throw Error(fmt::format("{}: no scan could be read for odometry", sequence.root.string()));
+  tracker.require_registered(sequence.root.string(), unreadable);
   const Pose T_world_odom = odometry_start_pose(sequence, r.stamps.front());
   std::vector<Pose> poses;
   for (std::size_t i = 0; i < r.stamps.size(); ++i) poses.push_back(T_world_odom * r.corrected(i));

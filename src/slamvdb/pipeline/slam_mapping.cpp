@@ -53,19 +53,22 @@ SlamMappingResult map_with_own_poses(const Sequence& seq, FeatureSource* feature
   double last_pose_stamp = -std::numeric_limits<double>::infinity();
   std::optional<Pose> last_odometry;  // G T_odom_sensor of the last pose given
 
-  std::size_t si = 0, ii = 0;
-  while (si < num_scans || ii < num_images) {
-    // In time order; a scan before an image of the same stamp.
-    if (ii < num_images && (si == num_scans || seq.images[ii].stamp < seq.scans[si].stamp)) {
-      mapper.add_image(seq.images[ii++]);
-      continue;
-    }
+  // Images are given once the pose after them is (the next readable scan's, or the end of the
+  // poses): given before it, they would wait in the mapper's queue for a pose only this thread
+  // can give, and a run of unreadable scans would fill the queue and stop this thread for good.
+  std::size_t si = 0, ii = 0, unreadable = 0;
+  const auto give_images_before = [&](double stamp) {
+    while (ii < num_images && seq.images[ii].stamp < stamp) mapper.add_image(seq.images[ii++]);
+  };
+  while (si < num_scans) {
     const ScanRecord& rec = seq.scans[si++];
     ScanPoints scan;
     try {
       scan = load_scan_points({rec.stamp, rec.points});
     } catch (const Error& e) {
       mapper.add_unreadable_scan(fmt::format("scan {}: {}", rec.points.filename().string(), e.what()));
+      ++unreadable;
+      if (progress) progress(si, num_scans, tracker.result());
       continue;
     }
     const Pose T_odom_sensor =
@@ -95,6 +98,7 @@ SlamMappingResult map_with_own_poses(const Sequence& seq, FeatureSource* feature
     last_odometry = G * T_odom_sensor;
     last_pose_stamp = rec.stamp;
     mapper.add_pose(rec.stamp, K_given * *last_odometry);
+    give_images_before(rec.stamp);  // a scan before an image of the same stamp
     mapper.add_scan(rec.stamp, std::move(scan.points));
     if (corrections.pending_loops())
       corrections.merge_ready(mapper.map().submaps(), mapper.map().active_submap_id(),
@@ -102,7 +106,9 @@ SlamMappingResult map_with_own_poses(const Sequence& seq, FeatureSource* feature
     if (progress) progress(si, num_scans, tracker.result());
     if (mapper.failed()) break;  // finish() names the error
   }
+  if (!mapper.failed()) tracker.require_registered(seq.root.string(), unreadable);
   mapper.end_poses();
+  if (!mapper.failed()) give_images_before(std::numeric_limits<double>::infinity());  // after the last pose: counted
   SemanticMap map = mapper.finish();
   // Loops whose newest submap was still being written: it is finished now.
   corrections.merge_ready(map.submaps(), std::nullopt,

@@ -29,8 +29,8 @@ struct SlamMappingResult {
   std::vector<Pose> corrected_poses() const;  // the same after the final loop corrections
 };
 
-// progress(done, total, tracking so far) after every scan. Throws Error when the odometry is lost
-// or the mapper fails; unreadable scans are skipped and counted.
+// progress(done, total, tracking so far) after every scan. Throws Error when the odometry is lost,
+// no scan could be registered, or the mapper fails; unreadable scans are skipped and counted.
 using SlamProgress = std::function<void(std::size_t, std::size_t, const TrackingResult&)>;
 SlamMappingResult map_with_own_poses(const Sequence& sequence, FeatureSource* features,
                                      const SlamMappingOptions& options, const SlamProgress& progress = {});
