@@ -86,6 +86,7 @@ void image_to_rgb8(const ImageView& image, std::vector<std::uint8_t>& rgb) {
   check_convertible(image);
   const std::size_t w = image.width, bpp = image_bytes_per_pixel(image.encoding);
   rgb.resize(w * image.height * 3);
+  if (rgb.empty()) return;
   const std::string_view e = image.encoding;
   const bool swap_rb = e == "bgr8" || e == "bgra8";
   for (std::size_t row = 0; row < image.height; ++row) {
@@ -116,6 +117,7 @@ void image_to_mono8(const ImageView& image, std::vector<std::uint8_t>& mono) {
                             kImageType, image.encoding));
   const std::size_t w = image.width;
   mono.resize(w * image.height);
+  if (mono.empty()) return;
   for (std::size_t row = 0; row < image.height; ++row) {
     const std::uint8_t* in = image.data.data() + row * image.step;
     std::uint8_t* out = mono.data() + row * w;

@@ -60,6 +60,10 @@ class ImageDecoding : public ::testing::Test {
     short_data["image"]["data_size"] = 6;
     spec["messages"].push_back(short_data);
     spec["messages"].push_back(image_spec("bayer", "bayer_rggb8", 3));
+    json empty = image_spec("empty", "mono8", 0);  // 0 x 2: found by the fuzzer (a memcpy from no data)
+    empty["image"]["width"] = 0;
+    empty["image"]["pixels"] = json::array();
+    spec["messages"].push_back(empty);
     spec["messages"].push_back({{"name", "compressed"},
                                 {"type", "sensor_msgs/CompressedImage"},
                                 {"message",
@@ -142,6 +146,20 @@ TEST_F(ImageDecoding, LayoutErrorsNameTheField) {
   std::vector<std::uint8_t> rgb;
   const std::string e = error_of([&] { image_to_rgb8(bayer, rgb); });
   EXPECT_NE(e.find("encoding \"bayer_rggb8\" is not supported"), std::string::npos) << e;
+}
+
+TEST_F(ImageDecoding, ImagesWithoutPixelsConvertToNothing) {
+  std::vector<std::uint8_t> out(5, 1);
+  for (const auto& form : testing::forms_of(encoded("empty"))) {
+    const ImageView image = decode_image(*form.bytes, form.serialization);
+    EXPECT_EQ(image.width, 0u);
+    EXPECT_EQ(image.height, 2u);
+    image_to_rgb8(image, out);
+    EXPECT_TRUE(out.empty());
+    out.assign(5, 1);
+    image_to_mono8(image, out);
+    EXPECT_TRUE(out.empty());
+  }
 }
 
 TEST_F(ImageDecoding, CompressedImageIsAView) {
