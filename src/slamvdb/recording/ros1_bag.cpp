@@ -53,6 +53,20 @@ Ros1BagReader::Ros1BagReader(const std::filesystem::path& path, const Ros1BagOpt
     // Channels are found while reading: room reserved so that they do not move (Message::channel).
     channels_.reserve(4096);
     channels_reserved_ = true;
+    note_compression_at(linear_offset_);
+  }
+}
+
+void Ros1BagReader::note_compression_at(std::uint64_t offset) {
+  // The compression is in each chunk's own header: the first one says what the bag uses (for
+  // describe() before reading; the others are added as they are read).
+  std::string why;
+  try {
+    if (const auto record = read_record(offset, why))
+      if (const auto compression = RecordFields(record->header).find("compression"))
+        compressions_.insert(std::string(reinterpret_cast<const char*>(compression->data()), compression->size()));
+  } catch (const Error&) {
+    // Damage there is reported when the chunk is read.
   }
 }
 
@@ -153,13 +167,7 @@ bool Ros1BagReader::read_index(const BagHeader& header) {
     return a.start_ns != b.start_ns ? a.start_ns < b.start_ns : a.chunk_pos < b.chunk_pos;
   });
   chunks_ = std::move(infos);
-  // The compression is in each chunk's own header: the first one says what the bag uses.
-  if (!chunks_.empty()) {
-    std::string why;
-    if (const auto record = read_record(chunks_.front().chunk_pos, why))
-      if (const auto compression = RecordFields(record->header).find("compression"))
-        compressions_.insert(std::string(reinterpret_cast<const char*>(compression->data()), compression->size()));
-  }
+  if (!chunks_.empty()) note_compression_at(chunks_.front().chunk_pos);
   return true;
 }
 

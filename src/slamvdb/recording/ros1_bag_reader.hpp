@@ -64,6 +64,7 @@ class Ros1BagReader final : public RecordingReader {
   bool wanted(std::uint32_t connection) const { return selected_.empty() || selected_.count(connection) > 0; }
   void add_channel(const ConnectionRecord& connection);
   void note(std::string text);
+  void note_compression_at(std::uint64_t offset);
   [[noreturn]] void fail(std::uint64_t offset, std::string_view what) const;
 
   // ros1_bag_chunks.cpp
