@@ -6,8 +6,10 @@ The content is the one every recording fixture writer shares (the MCAP and rosba
 the same messages): PointCloud2 scans with per-point t, CompressedImage, CameraInfo, a mono8 label
 Image, /tf_static and ground-truth Odometry. Run with Debian's interpreter: /usr/bin/python3 write_ros1_bag.py ...
 
---manifest FILE writes, for every message in the order written, its topic, type, log time, size
-and the CRC-32 of its serialized bytes, so that a reader can be checked message by message.
+--manifest FILE writes JSON lines, one per message in the order written: its topic, type, log time,
+header stamp, size and the CRC-32 (zlib's) of its serialized bytes, so that a reader can be checked
+message by message (the same manifest as the MCAP and rosbag2 fixture writers'); with --kill-after,
+"in_finished_chunk" says whether the message's chunk was finished before the writer stopped.
 --no-index and --kill-after N leave the bag as a recording that was not closed leaves it."""
 import argparse
 import io
@@ -121,9 +123,17 @@ def read_sequence(folder, max_scans):
     return [os.path.join(scan_dir, s) for s in scans], times, poses, cam, transform, images
 
 
-def cloud_message(path, stamp_ns, organised, padding):
+def cloud_message(path, stamp_ns, organised, padding, times_dir):
     points = np.fromfile(path, dtype="<f4").reshape(-1, 4)
     n = len(points)
+    times = np.zeros(n, dtype="<u4")
+    if times_dir:  # one uint32 (ns since the scan start) per point, in a file named like the scan
+        times_path = os.path.join(times_dir, os.path.basename(path))
+        if not os.path.isfile(times_path):
+            fail(f"{times_path}: no per-point times for {path}")
+        times = np.fromfile(times_path, dtype="<u4")
+        if len(times) != n:
+            fail(f"{times_path}: {len(times)} times for {n} points (one uint32 per point expected)")
     height = organised or 1
     if n % height:
         fail(f"{path}: {n} points do not make {height} rows")
@@ -133,6 +143,7 @@ def cloud_message(path, stamp_ns, organised, padding):
                                          "offsets": [0, 4, 8, 12, 16], "itemsize": step}))
     for i, name in enumerate(["x", "y", "z", "intensity"]):
         record[name] = points[:, i]
+    record["t"] = times
     msg = PointCloud2()
     msg.header.stamp = stamp_of(stamp_ns)
     msg.header.frame_id = "os1_sensor"
@@ -162,7 +173,7 @@ def build_messages(args):
     for ns, kind, i in sorted(events):
         if kind == 0:
             out.append(("/os1_cloud_node/points", "sensor_msgs/PointCloud2",
-                        cloud_message(scans[i], ns, args.organised, args.padding), ns))
+                        cloud_message(scans[i], ns, args.organised, args.padding, args.point_times), ns))
             odom = Odometry()
             odom.header.stamp = stamp_of(ns)
             odom.header.frame_id, odom.child_frame_id = "map", "os1_sensor"
@@ -206,6 +217,8 @@ def main():
     parser.add_argument("--max-scans", type=int, help="only the first K scans (and the images up to the last)")
     parser.add_argument("--organised", type=int, default=0, metavar="H", help="clouds of H rows")
     parser.add_argument("--padding", type=int, default=0, metavar="P", help="P bytes of padding after each point")
+    parser.add_argument("--point-times", metavar="DIR",
+                        help="per-point t from DIR/NNNNNN.bin (one uint32, ns since the scan start, per point)")
     parser.add_argument("--tf-type", choices=["tf2_msgs/TFMessage", "tf/tfMessage"], default="tf2_msgs/TFMessage")
     parser.add_argument("--write-order", choices=["time", "topic"], default="time",
                         help="time: as a recorder writes; topic: topic by topic (chunks overlapping in time)")
@@ -222,7 +235,7 @@ def main():
     messages = build_messages(args)
     offset_ns = round(args.log_time_offset * 1e9)
     bag = rosbag.Bag(args.output, "w", compression=args.compression, chunk_threshold=args.chunk_size)
-    manifest, buffer, complete = [], io.BytesIO(), 0
+    manifest, buffer, finished = [], io.BytesIO(), 0
     for seq, (topic, ros_type, msg, ns) in enumerate(messages):
         if args.kill_after is not None and seq >= args.kill_after:
             break
@@ -237,13 +250,14 @@ def main():
         else:  # tf/tfMessage: the same layout and md5sum as tf2_msgs/TFMessage, under its ROS 1 name
             bag.write(topic, (ros_type, data, msg._md5sum, type(msg)), log_time, raw=True)
         if len(bag._chunks) > chunks_before:
-            complete = seq + 1  # this message finished a chunk: it and all before it are in finished chunks
+            finished = seq + 1  # this message finished a chunk: it and all before it are in finished chunks
         manifest.append({"seq": seq, "topic": topic, "type": ros_type, "log_time_ns": ns + offset_ns,
                          "stamp_ns": ns, "size": len(data), "crc32": zlib.crc32(data)})
     if args.manifest:
         with open(args.manifest, "w") as f:
-            json.dump({"messages": manifest, "in_finished_chunks": complete if args.kill_after is not None
-                       else len(manifest)}, f)
+            for m in manifest:
+                m["in_finished_chunk"] = args.kill_after is None or m["seq"] < finished
+                f.write(json.dumps(m) + "\n")
     if args.no_index:
         bag.flush()  # the open chunk is finished and its index data written; the bag index is not
         bag._file.flush()

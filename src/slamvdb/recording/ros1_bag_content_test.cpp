@@ -37,9 +37,22 @@ TEST(Ros1BagContent, DecodesToTheSequenceItWasWrittenFrom) {
   testing::TempDir tmp;
   const fs::path sequence = testing::ros1_bag_test_sequence();
   constexpr std::int64_t kLogOffsetNs = -5'184'000'000'000'000;  // log times 60 days before the stamps
+  // Per-point times (uint32 ns since the scan start) for every scan, as a driver writes them.
+  const auto scans = sorted_files(sequence / "os1_cloud_node_kitti_bin", ".bin");
+  const auto point_time_ns = [](std::size_t p) { return static_cast<std::uint32_t>((p % 1024) * 97'000); };
+  fs::create_directories(tmp.path / "times");
+  for (const fs::path& scan : scans) {
+    std::vector<std::uint8_t> times(fs::file_size(scan) / 4);  // 4 bytes per point of 16 (x y z i)
+    for (std::size_t p = 0; p < times.size() / 4; ++p) {
+      const std::uint32_t t = point_time_ns(p);
+      std::memcpy(times.data() + 4 * p, &t, 4);
+    }
+    testing::write_bytes(tmp.path / "times" / scan.filename(), times);
+  }
   const auto bag = testing::write_ros1_bag(tmp.path, "content.bag",
                                            "--compression lz4 --organised 64 --padding 4 --tf-type tf/tfMessage "
-                                           "--log-time-offset -5184000");
+                                           "--log-time-offset -5184000 --point-times " +
+                                               testing::quote_path(tmp.path / "times"));
   std::vector<std::int64_t> stamps;
   {
     std::ifstream in(sequence / "times.txt");
@@ -54,7 +67,6 @@ TEST(Ros1BagContent, DecodesToTheSequenceItWasWrittenFrom) {
       poses.emplace_back(std::istream_iterator<double>(row), std::istream_iterator<double>());
     }
   }
-  const auto scans = sorted_files(sequence / "os1_cloud_node_kitti_bin", ".bin");
   const auto jpegs = sorted_files(sequence / "pylon_camera_node", ".jpg");
   const auto labels = sorted_files(sequence / "pylon_camera_node_label_id", ".png");
   ASSERT_EQ(scans.size(), stamps.size());
@@ -87,7 +99,7 @@ TEST(Ros1BagContent, DecodesToTheSequenceItWasWrittenFrom) {
         std::memcpy(xyzi, bin.data() + 16 * p, 16);
         ASSERT_EQ(points[p], Vec3f(xyzi[0], xyzi[1], xyzi[2])) << "point " << p;
         ASSERT_EQ(intensity[p], xyzi[3]);
-        ASSERT_EQ(times[p], 0.0f) << "the writer's t is 0 without per-point times";
+        ASSERT_EQ(times[p], static_cast<float>(point_time_ns(p) * 1e-9)) << "point " << p;
       }
     } else if (kind == MessageKind::kOdometry) {
       const Odometry odometry = decode_odometry(m.data, m.channel->serialization);

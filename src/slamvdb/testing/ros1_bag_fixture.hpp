@@ -2,7 +2,7 @@
 // For tests only: ROS 1 bags written by ROS's own writer (Debian's python3-rosbag, through
 // tests/recording_fixtures/write_ros1_bag.py) from a small simulated sequence, with the manifest
 // the writer dumps (topic, type, log time, size and CRC-32 of every message, in the order
-// written), and a walker of the bag's top-level records for tests that damage a bag on purpose.
+// written, JSON lines), and a walker of the bag's top-level records for tests that damage a bag on purpose.
 #include <gtest/gtest.h>
 #include <unistd.h>
 #include <zlib.h>
@@ -71,12 +71,13 @@ inline WrittenBag write_ros1_bag(const std::filesystem::path& dir, const std::st
                                       quote_path(ros1_bag_test_sequence()) + " " + quote_path(bag.path) + " " +
                                       options + " --manifest " + quote_path(manifest));
   EXPECT_EQ(r.exit_code, 0) << "write_ros1_bag.py " << options << ":\n" << r.output;
-  std::ifstream in(manifest);
-  if (!in) return bag;
-  const nlohmann::json j = nlohmann::json::parse(in);
-  for (const auto& m : j["messages"])
+  std::ifstream in(manifest);  // JSON lines, one per message in the order written
+  for (std::string line; std::getline(in, line);) {
+    if (line.empty()) continue;
+    const nlohmann::json m = nlohmann::json::parse(line);
     bag.messages.push_back({m["seq"], m["topic"], m["type"], m["log_time_ns"], m["stamp_ns"], m["size"], m["crc32"]});
-  bag.in_finished_chunks = j["in_finished_chunks"];
+    if (m["in_finished_chunk"].get<bool>()) bag.in_finished_chunks = bag.messages.size();
+  }
   return bag;
 }
 
