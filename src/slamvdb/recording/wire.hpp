@@ -9,7 +9,7 @@
 // Hand-written rather than eProsima Fast-CDR (libfastcdr-dev 1.0): Fast-CDR reads CDR only (ROS 1
 // needs a reader anyway), copies sequences into std::vector where PointCloud2 and Image need a
 // view of their payload, and its exceptions say "not enough memory" without the field or offset.
-// Reading the dozen types slamvdb uses takes these ~200 lines.
+// Reading the dozen types slamvdb uses takes these ~250 lines.
 #include <cstdint>
 #include <cstring>
 #include <span>
