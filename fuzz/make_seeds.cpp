@@ -6,6 +6,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <string>
@@ -17,6 +18,9 @@
 #include "slamvdb/store/map_store.hpp"
 
 namespace fs = std::filesystem;
+
+// ros_seeds.cpp: the ROS message and ROS 1 bag seeds.
+void write_ros_seeds(const std::function<void(const std::string&, const std::string&, const std::string&)>& seed);
 
 namespace {
 
@@ -154,6 +158,8 @@ int main(int argc, char** argv) {
   slamvdb::save_map(out_dir / "seed.svdb.tmp", map);
   seed("map_file", "v2", file_bytes(out_dir / "seed.svdb.tmp"));
   fs::remove(out_dir / "seed.svdb.tmp");
+
+  write_ros_seeds(seed);
 
   seed("file_names", "rellis", "frame000104-1581624663_149");
   seed("file_names", "escape", "model\x1b[2J\xc2\x9b\xe2\x80\xae\xff");
