@@ -1,6 +1,5 @@
-// Seeds of the recording harnesses (fuzz_mcap, fuzz_rosbag2): small MCAP files assembled here
-// record by record from the specification (the project has no MCAP writer; the tests use
-// @mcap/core's), in each form the reader has a path for (indexed, no summary, messages outside
+// Seeds of the recording harnesses (fuzz_mcap, fuzz_rosbag2): small MCAP files assembled record
+// by record (testing/mcap_assembly.hpp; the project has no MCAP writer, the tests use @mcap/core's), in each form the reader has a path for (indexed, no summary, messages outside
 // chunks, zstd and lz4 chunks), and ROS 2 bags made with SQLite's C API (rosbag2's tables).
 #include <fmt/format.h>
 #include <lz4frame.h>
@@ -15,7 +14,7 @@
 #include <string>
 #include <vector>
 
-#include "slamvdb/recording/crc32.hpp"
+#include "slamvdb/testing/mcap_assembly.hpp"
 
 namespace fs = std::filesystem;
 
@@ -26,25 +25,7 @@ void put(const fs::path& dir, const std::string& name, const std::string& bytes)
   std::ofstream(dir / name, std::ios::binary) << bytes;
 }
 
-template <typename T>
-std::string le(T v) {
-  std::string s(sizeof(T), '\0');
-  for (std::size_t i = 0; i < sizeof(T); ++i) s[i] = static_cast<char>(static_cast<std::uint64_t>(v) >> (8 * i));
-  return s;
-}
-std::string str(const std::string& s) { return le<std::uint32_t>(static_cast<std::uint32_t>(s.size())) + s; }
-std::string record(std::uint8_t op, const std::string& content) {
-  return std::string(1, static_cast<char>(op)) + le<std::uint64_t>(content.size()) + content;
-}
-const std::string kMagic("\x89MCAP0\r\n", 8);
-
-std::string schema() { return record(0x03, le<std::uint16_t>(1) + str("sensor_msgs/msg/Imu") + str("ros2msg") + str("float64 x")); }
-std::string channel() {
-  return record(0x04, le<std::uint16_t>(3) + le<std::uint16_t>(1) + str("/imu") + str("cdr") + le<std::uint32_t>(0));
-}
-std::string message(std::uint64_t t, const std::string& data) {
-  return record(0x05, le<std::uint16_t>(3) + le<std::uint32_t>(0) + le<std::uint64_t>(t) + le<std::uint64_t>(t) + data);
-}
+using namespace slamvdb::testing::mcap_assembly;
 
 std::string compress(const std::string& how, const std::string& raw) {
   std::string out;
@@ -63,47 +44,31 @@ std::string compress(const std::string& how, const std::string& raw) {
 // magic, header, [chunk + message index | loose records], data end, [summary], footer, magic.
 std::string mcap_file(const std::string& compression, bool chunked, bool summary) {
   const std::string cdr("\x00\x01\x00\x00\x00\x00\x00\x00\x00\x00\xf0\x3f", 12);
-  const std::string records = schema() + channel() + message(20, cdr) + message(10, cdr) + message(30, cdr);
-  std::string file = kMagic + record(0x01, str("ros2") + str("slamvdb fuzz seeds"));
-  std::string data;
-  std::uint64_t chunk_offset = file.size(), chunk_length = 0;
+  const std::string definitions = schema(1, "sensor_msgs/msg/Imu", "ros2msg", "float64 x") + channel(3, 1, "/imu", "cdr");
+  const std::string records = definitions + message(3, 20, cdr) + message(3, 10, cdr) + message(3, 30, cdr);
+  std::string file = magic() + header("ros2");
+  const std::uint64_t chunk_offset = file.size();
   const std::string packed = compress(compression, records);
+  const std::string the_chunk = chunk(10, 30, records, compression, packed);
   if (chunked) {
-    const std::string chunk = record(0x06, le<std::uint64_t>(10) + le<std::uint64_t>(30) + le<std::uint64_t>(records.size()) +
-                                               le<std::uint32_t>(slamvdb::recording::crc32(0, records.data(), records.size())) +
-                                               str(compression) + le<std::uint64_t>(packed.size()) + packed);
-    chunk_length = chunk.size();
-    const std::size_t first_message = schema().size() + channel().size();
-    const std::string index = record(
-        0x07, le<std::uint16_t>(3) + le<std::uint32_t>(48) + le<std::uint64_t>(20) + le<std::uint64_t>(first_message) +
-                  le<std::uint64_t>(10) + le<std::uint64_t>(first_message + message(20, cdr).size()) +
-                  le<std::uint64_t>(30) + le<std::uint64_t>(first_message + 2 * message(20, cdr).size()));
-    data = chunk + index;
+    const std::uint64_t m = message(3, 20, cdr).size();
+    file += the_chunk + record(0x07, le<std::uint16_t>(3) + le<std::uint32_t>(48) + le<std::uint64_t>(20) +
+                                         le<std::uint64_t>(definitions.size()) + le<std::uint64_t>(10) +
+                                         le<std::uint64_t>(definitions.size() + m) + le<std::uint64_t>(30) +
+                                         le<std::uint64_t>(definitions.size() + 2 * m));
   } else {
-    data = records;
+    file += records;
   }
-  file += data + record(0x0F, le<std::uint32_t>(0));
+  file += data_end();
   const std::uint64_t summary_start = file.size();
   std::string summary_records;
   if (summary) {
-    summary_records = schema() + channel() +
-                      record(0x0B, le<std::uint64_t>(3) + le<std::uint16_t>(1) + le<std::uint32_t>(1) + le<std::uint32_t>(0) +
-                                       le<std::uint32_t>(0) + le<std::uint32_t>(chunked ? 1 : 0) + le<std::uint64_t>(10) +
-                                       le<std::uint64_t>(30) + le<std::uint32_t>(10) + le<std::uint16_t>(3) +
-                                       le<std::uint64_t>(3));
+    summary_records = definitions + statistics(3, 10, 30, {{3, 3}});
     if (chunked)
-      summary_records += record(0x08, le<std::uint64_t>(10) + le<std::uint64_t>(30) + le<std::uint64_t>(chunk_offset) +
-                                          le<std::uint64_t>(chunk_length) + le<std::uint32_t>(10) + le<std::uint16_t>(3) +
-                                          le<std::uint64_t>(chunk_offset + chunk_length) + le<std::uint64_t>(0) +
-                                          str(compression) + le<std::uint64_t>(packed.size()) +
-                                          le<std::uint64_t>(records.size()));
+      summary_records += chunk_index(10, 30, chunk_offset, the_chunk.size(), {3}, compression, packed.size(),
+                                     records.size());
   }
-  file += summary_records;
-  const std::string footer_start = std::string(1, '\x02') + le<std::uint64_t>(20) +
-                                   le<std::uint64_t>(summary ? summary_start : 0) + le<std::uint64_t>(0);
-  const std::string covered = summary_records + footer_start;
-  file += footer_start + le<std::uint32_t>(summary ? slamvdb::recording::crc32(0, covered.data(), covered.size()) : 0);
-  return file + kMagic;
+  return file + summary_records + footer(summary ? summary_start : 0, summary_records);
 }
 
 void exec(sqlite3* db, const std::string& sql) {

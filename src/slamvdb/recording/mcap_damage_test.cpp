@@ -65,12 +65,6 @@ std::vector<RecordAt> records_of(const std::string& b, int opcode) {
   return out;
 }
 
-std::string notes_of(const RecordingReader& r) {
-  std::string s;
-  for (const auto& n : r.notes()) s += n + "\n";
-  return s;
-}
-
 TEST_F(McapDamage, FileCutInsideAChunkIsReadUpToThatChunkWithANote) {
   const fs::path file = write("cut", "--compression zstd --chunk-size 100000");
   const std::string bytes = testing::read_text_file(file);
@@ -80,7 +74,7 @@ TEST_F(McapDamage, FileCutInsideAChunkIsReadUpToThatChunkWithANote) {
   const fs::path cut = altered("cut_inside.mcap", bytes.substr(0, cut_chunk.offset + cut_chunk.length / 2));
 
   const auto reader = open_mcap(cut);
-  const std::string notes = notes_of(*reader);
+  const std::string notes = testing::notes_text(*reader);
   EXPECT_NE(notes.find("ends inside the Chunk record at offset " + std::to_string(cut_chunk.offset)), std::string::npos)
       << notes;
   EXPECT_NE(notes.find(cut.string()), std::string::npos) << notes;
@@ -100,7 +94,7 @@ TEST_F(McapDamage, FileWithoutItsEndIsReadWhole) {
   ASSERT_EQ(data_end.size(), 1u);
   const fs::path cut = altered("unfinished_cut.mcap", bytes.substr(0, data_end[0].offset));
   const auto reader = open_mcap(cut);
-  EXPECT_NE(notes_of(*reader).find("has no footer"), std::string::npos) << notes_of(*reader);
+  EXPECT_NE(testing::notes_text(*reader).find("has no footer"), std::string::npos) << testing::notes_text(*reader);
   EXPECT_TRUE(testing::same_messages(testing::in_log_time_order(testing::read_manifest(manifest_of(file))),
                                      testing::read_all(*reader)));
 }
@@ -226,7 +220,9 @@ TEST_F(McapDamage, CutOrFlippedAnywhereIsNeverACrash) {
       b[std::uniform_int_distribution<std::size_t>(0, b.size() - 1)(rng)] ^= static_cast<char>(1 + rng() % 255);
       attempt(b);
     }
-    if (some_errors) EXPECT_GT(errors, 0) << options;
+    if (some_errors) {
+      EXPECT_GT(errors, 0) << options;
+    }
     EXPECT_GT(read, 0) << options;
   }
 }

@@ -27,24 +27,18 @@ class McapFixture : public testing::RecordingFixtureTest {
   }
 };
 
-std::string joined(const std::vector<std::string>& notes) {
-  std::string s;
-  for (const auto& n : notes) s += n + "\n";
-  return s;
-}
-
 // --- every form -----------------------------------------------------------------------------
 
-struct Form {
+struct McapForm {
   std::string name, options;
   bool ros2;
   std::string note;  // what the notes must say ("": nothing)
 };
 
-class McapForms : public McapFixture, public ::testing::WithParamInterface<Form> {};
+class McapForms : public McapFixture, public ::testing::WithParamInterface<McapForm> {};
 
 TEST_P(McapForms, ReadsBackEveryMessageInLogTimeOrder) {
-  const Form& form = GetParam();
+  const McapForm& form = GetParam();
   const fs::path file = write(form.name, form.options);
   const auto written = testing::read_manifest(manifest_of(file));
   ASSERT_EQ(written.size(), 15u);  // tf, 4 scans + 4 odometry, 2 x (image, camera info, labels)
@@ -77,7 +71,7 @@ TEST_P(McapForms, ReadsBackEveryMessageInLogTimeOrder) {
   // Everything once; twice without a summary (a first pass lists the channels).
   EXPECT_LE(reader->bytes_read(), (form.note.empty() ? 1.01 : 2.02) * static_cast<double>(reader->size_bytes()));
   EXPECT_EQ(reader->size_bytes(), fs::file_size(file));
-  const std::string notes = joined(reader->notes());
+  const std::string notes = testing::notes_text(*reader);
   if (form.note.empty()) {
     EXPECT_EQ(notes, "");
   } else {
@@ -89,22 +83,22 @@ TEST_P(McapForms, ReadsBackEveryMessageInLogTimeOrder) {
 
 INSTANTIATE_TEST_SUITE_P(
     AllForms, McapForms,
-    ::testing::Values(Form{"ros1_none", "--profile ros1", false, ""},
-                      Form{"ros1_lz4", "--profile ros1 --compression lz4", false, ""},
-                      Form{"ros1_zstd", "--profile ros1 --compression zstd", false, ""},
-                      Form{"ros2_none", "--profile ros2", true, ""},
-                      Form{"ros2_lz4", "--profile ros2 --compression lz4 --chunk-size 100000", true, ""},
-                      Form{"ros2_zstd", "--profile ros2 --compression zstd", true, ""},
-                      Form{"ros2_big_endian", "--profile ros2 --big-endian --compression zstd", true, ""},
-                      Form{"ros1_none_no_summary", "--profile ros1 --no-summary", false, "no summary"},
-                      Form{"ros1_lz4_no_summary", "--profile ros1 --compression lz4 --no-summary", false, "no summary"},
-                      Form{"ros2_zstd_no_summary", "--profile ros2 --compression zstd --no-summary", true, "no summary"},
-                      Form{"ros2_unchunked", "--profile ros2 --unchunked", true, "no chunk index"},
-                      Form{"ros1_unchunked_no_summary", "--profile ros1 --unchunked --no-summary", false, "no summary"},
+    ::testing::Values(McapForm{"ros1_none", "--profile ros1", false, ""},
+                      McapForm{"ros1_lz4", "--profile ros1 --compression lz4", false, ""},
+                      McapForm{"ros1_zstd", "--profile ros1 --compression zstd", false, ""},
+                      McapForm{"ros2_none", "--profile ros2", true, ""},
+                      McapForm{"ros2_lz4", "--profile ros2 --compression lz4 --chunk-size 100000", true, ""},
+                      McapForm{"ros2_zstd", "--profile ros2 --compression zstd", true, ""},
+                      McapForm{"ros2_big_endian", "--profile ros2 --big-endian --compression zstd", true, ""},
+                      McapForm{"ros1_none_no_summary", "--profile ros1 --no-summary", false, "no summary"},
+                      McapForm{"ros1_lz4_no_summary", "--profile ros1 --compression lz4 --no-summary", false, "no summary"},
+                      McapForm{"ros2_zstd_no_summary", "--profile ros2 --compression zstd --no-summary", true, "no summary"},
+                      McapForm{"ros2_unchunked", "--profile ros2 --unchunked", true, "no chunk index"},
+                      McapForm{"ros1_unchunked_no_summary", "--profile ros1 --unchunked --no-summary", false, "no summary"},
                       // Topic after topic in one chunk: messages out of log-time order inside it.
-                      Form{"ros2_one_chunk_by_topic", "--order by-topic --chunk-size 100000000", true, ""},
+                      McapForm{"ros2_one_chunk_by_topic", "--order by-topic --chunk-size 100000000", true, ""},
                       // Topic after topic in small chunks: chunks overlapping in time, merged by the index.
-                      Form{"ros1_zstd_overlapping", "--profile ros1 --compression zstd --order by-topic --chunk-size 50000",
+                      McapForm{"ros1_zstd_overlapping", "--profile ros1 --compression zstd --order by-topic --chunk-size 50000",
                            false, ""}),
     [](const auto& info) { return info.param.name; });
 
@@ -169,7 +163,7 @@ TEST_F(McapFixture, LinearReadingSaysWhenChunksOverlapBeyondWhatItCanReorder) {
   for (const auto& w : written) a.emplace(w.topic, w.log_time_ns, w.crc32);
   for (const auto& r : read) b.emplace(r.topic, r.log_time_ns, r.crc32);
   EXPECT_EQ(a, b);
-  EXPECT_NE(joined(reader->notes()).find("came out earlier in log time"), std::string::npos) << joined(reader->notes());
+  EXPECT_NE(testing::notes_text(*reader).find("came out earlier in log time"), std::string::npos) << testing::notes_text(*reader);
 }
 
 }  // namespace

@@ -29,12 +29,6 @@ class Rosbag2Fixture : public testing::RecordingFixtureTest {
   }
 };
 
-std::string notes_of(const RecordingReader& r) {
-  std::string s;
-  for (const auto& n : r.notes()) s += n + "\n";
-  return s;
-}
-
 // Runs SQL on a .db3 with Python's sqlite3 (as the fixture writer does).
 void run_sql(const fs::path& db3, const std::string& sql) {
   const auto r = testing::run_command("exec python3 -c " +
@@ -44,15 +38,15 @@ void run_sql(const fs::path& db3, const std::string& sql) {
   ASSERT_EQ(r.exit_code, 0) << r.output;
 }
 
-struct Form {
+struct Rosbag2Form {
   std::string name, options;
   int files;
   bool definitions;  // schema version 4 (Iron on) keeps the message definitions
 };
-class Rosbag2Forms : public Rosbag2Fixture, public ::testing::WithParamInterface<Form> {};
+class Rosbag2Forms : public Rosbag2Fixture, public ::testing::WithParamInterface<Rosbag2Form> {};
 
 TEST_P(Rosbag2Forms, ReadsBackEveryMessageInTimeOrder) {
-  const Form& form = GetParam();
+  const Rosbag2Form& form = GetParam();
   const fs::path bag = write(form.name, form.options);
   const auto written = testing::read_manifest(manifest_of(bag));
   ASSERT_EQ(written.size(), 15u);
@@ -83,7 +77,7 @@ TEST_P(Rosbag2Forms, ReadsBackEveryMessageInTimeOrder) {
     EXPECT_EQ(c.definition.empty(), !form.definitions) << c.topic << ": " << c.definition;
   EXPECT_NE(reader->describe().find(std::to_string(form.files) + " file"), std::string::npos) << reader->describe();
   EXPECT_EQ(reader->bytes_read(), reader->size_bytes());
-  const std::string notes = notes_of(*reader);
+  const std::string notes = testing::notes_text(*reader);
   if (form.options.find("zstd-file") != std::string::npos)
     EXPECT_NE(notes.find("decompressed to a temporary copy"), std::string::npos) << notes;
   else
@@ -92,11 +86,11 @@ TEST_P(Rosbag2Forms, ReadsBackEveryMessageInTimeOrder) {
 
 INSTANTIATE_TEST_SUITE_P(
     AllForms, Rosbag2Forms,
-    ::testing::Values(Form{"one_file", "", 1, true}, Form{"two_files", "--split 2", 2, true},
-                      Form{"three_files_humble", "--split 3 --ros-distro humble", 3, false},
-                      Form{"file_compression", "--split 2 --compression zstd-file", 2, true},
-                      Form{"message_compression", "--split 2 --compression zstd-message --ros-distro iron", 2, true},
-                      Form{"big_endian", "--big-endian --ros-distro humble", 1, false}),
+    ::testing::Values(Rosbag2Form{"one_file", "", 1, true}, Rosbag2Form{"two_files", "--split 2", 2, true},
+                      Rosbag2Form{"three_files_humble", "--split 3 --ros-distro humble", 3, false},
+                      Rosbag2Form{"file_compression", "--split 2 --compression zstd-file", 2, true},
+                      Rosbag2Form{"message_compression", "--split 2 --compression zstd-message --ros-distro iron", 2, true},
+                      Rosbag2Form{"big_endian", "--big-endian --ros-distro humble", 1, false}),
     [](const auto& info) { return info.param.name; });
 
 TEST_F(Rosbag2Fixture, FilesOverlappingInTimeAreMerged) {
@@ -131,9 +125,41 @@ TEST_F(Rosbag2Fixture, SingleDb3FileWithoutMetadataReadsByItsOwnTables) {
     for (const Channel& c : reader->channels()) EXPECT_EQ(c.message_count, count[c.topic]) << c.topic;
     EXPECT_TRUE(testing::same_messages(testing::in_log_time_order(written), testing::read_all(*reader)));
     EXPECT_NE(reader->describe().find("single sqlite3 .db3 file"), std::string::npos);
-    const std::string notes = notes_of(*reader);
+    const std::string notes = testing::notes_text(*reader);
     EXPECT_EQ(notes.find("zstd frames") != std::string::npos, compression != "none") << notes;
   }
+}
+
+TEST_F(Rosbag2Fixture, McapStorageFolderIsReadThroughTheMcapReader) {
+  // rosbag2's mcap storage (the default from Iron): the folder holds .mcap files (ros2 profile).
+  const fs::path mcap = RecordingFixtureTest::write("write_mcap.mjs", "part.mcap", "--compression zstd");
+  const auto written = testing::read_manifest(manifest_of(mcap));
+  const fs::path bag = dir() / "mcap_bag";
+  fs::create_directories(bag);
+  fs::rename(mcap, bag / "mcap_bag_0.mcap");
+  const auto expected = testing::in_log_time_order(written);
+  const std::int64_t start = expected.front().log_time_ns, duration = expected.back().log_time_ns - start;
+  std::map<std::string, std::pair<std::string, int>> topics;
+  for (const auto& w : written) {
+    topics[w.topic].first = w.type.substr(0, w.type.find('/')) + "/msg" + w.type.substr(w.type.find('/'));
+    ++topics[w.topic].second;
+  }
+  std::string yaml = "rosbag2_bagfile_information:\n  version: 8\n  storage_identifier: mcap\n  duration:\n    nanoseconds: " +
+                     std::to_string(duration) + "\n  starting_time:\n    nanoseconds_since_epoch: " + std::to_string(start) +
+                     "\n  message_count: " + std::to_string(written.size()) + "\n  topics_with_message_count:\n";
+  for (const auto& [topic, t] : topics)
+    yaml += "    - topic_metadata:\n        name: " + topic + "\n        type: " + t.first +
+            "\n        serialization_format: cdr\n        offered_qos_profiles: \"\"\n        type_description_hash: \"\"\n"
+            "      message_count: " + std::to_string(t.second) + "\n";
+  yaml += "  compression_format: \"\"\n  compression_mode: \"\"\n  relative_file_paths:\n    - mcap_bag_0.mcap\n  files:\n"
+          "    - path: mcap_bag_0.mcap\n      starting_time:\n        nanoseconds_since_epoch: " + std::to_string(start) +
+          "\n      duration:\n        nanoseconds: " + std::to_string(duration) + "\n      message_count: " +
+          std::to_string(written.size()) + "\n  custom_data: ~\n  ros_distro: iron\n";
+  std::ofstream(bag / "metadata.yaml") << yaml;
+  const auto reader = open_rosbag2(bag);
+  EXPECT_EQ(reader->describe(), "ROS 2 bag (mcap storage, 1 file)");
+  EXPECT_TRUE(testing::same_messages(expected, testing::read_all(*reader)));
+  for (const Channel& c : reader->channels()) EXPECT_FALSE(c.definition.empty()) << c.topic;  // from the MCAP schemas
 }
 
 TEST_F(Rosbag2Fixture, SelectingATopicReadsOnlyIt) {
@@ -207,7 +233,7 @@ TEST_F(Rosbag2Fixture, FileCompressionUsesOneTemporaryCopyAtATimeAndRemovesIt) {
   {
     const auto reader = open_rosbag2(bag);
     EXPECT_EQ(testing::read_all(*reader).size(), 15u);
-    const std::string notes = notes_of(*reader);
+    const std::string notes = testing::notes_text(*reader);
     const std::size_t at = notes.find("temporary copy in \"");
     ASSERT_NE(at, std::string::npos) << notes;
     const std::size_t from = at + std::string("temporary copy in \"").size();

@@ -120,6 +120,13 @@ inline ::testing::AssertionResult same_messages(const std::vector<WrittenMessage
   return ::testing::AssertionSuccess();
 }
 
+// A reader's notes, one per line.
+inline std::string notes_text(const recording::RecordingReader& reader) {
+  std::string s;
+  for (const auto& n : reader.notes()) s += n + "\n";
+  return s;
+}
+
 // A test suite's fixture: the SIMULATED sequence written once per suite in a temporary folder, and
 // the fixture writers run on it.
 class RecordingFixtureTest : public ::testing::Test {
