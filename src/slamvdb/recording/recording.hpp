@@ -34,12 +34,14 @@ struct Channel {
   // The container's name for the serialization: "ros1", "cdr", or e.g. "json" / "protobuf" (kOther).
   std::string encoding;
   std::string definition;  // the message definition text the recording carries (may be empty)
-  // Messages on this channel according to the recording's index or summary; nullopt when the
-  // recording has none (an unindexed bag, an MCAP without summary: known only after reading).
+  // Messages on this channel according to the recording's index or summary (or a first pass over
+  // a recording without one, when the reader makes it: an MCAP without summary); nullopt when not
+  // known before reading (an unindexed bag).
   std::optional<std::uint64_t> message_count;
 };
 
-// One message. `data` stays valid until the next call to RecordingReader::next().
+// One message. `data` stays valid until the next call to RecordingReader::next() (select() does not
+// invalidate it).
 struct Message {
   const Channel* channel = nullptr;
   std::int64_t log_time_ns = 0;  // when it was recorded (ns since the Unix epoch)

@@ -165,11 +165,17 @@ void Db3Reader::select(const std::set<std::uint32_t>& channel_ids) {
   for (const std::uint32_t id : channel_ids)
     if (id < channels_.size()) selected_.insert(id);
   if (!channel_ids.empty() && selected_.empty()) selected_.insert(UINT32_MAX);  // none of this file's
-  if (!at_end_) start_query();
+  // The new query starts at the next call to next(): the message handed out last points into the
+  // current one's row, and stays valid until then.
+  restart_ = !at_end_;
 }
 
 bool Db3Reader::next(Message& out) {
   if (at_end_) return false;
+  if (restart_) {
+    start_query();
+    restart_ = false;
+  }
   const int rc = sqlite3_step(query_);
   if (rc == SQLITE_DONE) {
     at_end_ = true;

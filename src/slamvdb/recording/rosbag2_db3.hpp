@@ -56,6 +56,7 @@ class Db3Reader final : public RecordingReader {
   std::vector<Channel> channels_;
   std::map<std::int64_t, std::size_t> channel_of_topic_;  // topics.id -> index in channels_
   std::set<std::uint32_t> selected_;
+  bool restart_ = false;  // select() was called: a new query from the next message on
   bool resumed_ = false;  // a message was read: a new query starts after (last_timestamp_, last_id_)
   std::int64_t last_timestamp_ = 0, last_id_ = 0;
   std::uint64_t delivered_ = 0;

@@ -164,13 +164,36 @@ TEST_F(Rosbag2Fixture, McapStorageFolderIsReadThroughTheMcapReader) {
 
 TEST_F(Rosbag2Fixture, SelectingATopicReadsOnlyIt) {
   const fs::path bag = write("select", "--split 2 --compression zstd-message");
-  std::vector<testing::WrittenMessage> images;
-  for (const auto& w : testing::in_log_time_order(testing::read_manifest(manifest_of(bag))))
-    if (w.topic == "/pylon_camera_node/image_raw/compressed") images.push_back(w);
+  const auto written = testing::in_log_time_order(testing::read_manifest(manifest_of(bag)));
+  const std::string topic = "/pylon_camera_node/image_raw/compressed";
+  auto images_after = [&](std::size_t first) {
+    std::vector<testing::WrittenMessage> images;
+    for (std::size_t i = first; i < written.size(); ++i)
+      if (written[i].topic == topic) images.push_back(written[i]);
+    return images;
+  };
+  auto id_of = [&](const RecordingReader& r) {
+    for (const Channel& c : r.channels())
+      if (c.topic == topic) return c.id;
+    ADD_FAILURE() << "no channel " << topic;
+    return std::uint32_t{0};
+  };
   const auto reader = open_rosbag2(bag);
-  for (const Channel& c : reader->channels())
-    if (c.topic == "/pylon_camera_node/image_raw/compressed") reader->select({c.id});
-  EXPECT_TRUE(testing::same_messages(images, testing::read_all(*reader)));
+  reader->select({id_of(*reader)});
+  EXPECT_TRUE(testing::same_messages(images_after(0), testing::read_all(*reader)));
+
+  // Selected while reading, with both files open: the rest of the images, their bytes intact.
+  const auto midway = open_rosbag2(bag);
+  Message m;
+  for (int i = 0; i < 8; ++i) ASSERT_TRUE(midway->next(m));
+  midway->select({id_of(*midway)});
+  auto rest = testing::read_all(*midway);
+  const auto expected = images_after(8);
+  ASSERT_EQ(rest.size(), expected.size());
+  for (std::size_t i = 0; i < rest.size(); ++i) {
+    EXPECT_EQ(rest[i].log_time_ns, expected[i].log_time_ns);
+    EXPECT_EQ(rest[i].crc32, expected[i].crc32);
+  }
 }
 
 TEST_F(Rosbag2Fixture, MissingFileIsAnErrorNamingIt) {
