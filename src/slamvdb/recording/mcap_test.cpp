@@ -35,6 +35,8 @@ struct McapForm {
   std::string note;  // what the notes must say ("": nothing)
 };
 
+void PrintTo(const McapForm& form, std::ostream* os) { *os << form.name; }  // test names, not bytes
+
 class McapForms : public McapFixture, public ::testing::WithParamInterface<McapForm> {};
 
 TEST_P(McapForms, ReadsBackEveryMessageInLogTimeOrder) {

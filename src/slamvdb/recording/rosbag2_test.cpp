@@ -43,6 +43,8 @@ struct Rosbag2Form {
   int files;
   bool definitions;  // schema version 4 (Iron on) keeps the message definitions
 };
+void PrintTo(const Rosbag2Form& form, std::ostream* os) { *os << form.name; }  // test names, not bytes
+
 class Rosbag2Forms : public Rosbag2Fixture, public ::testing::WithParamInterface<Rosbag2Form> {};
 
 TEST_P(Rosbag2Forms, ReadsBackEveryMessageInTimeOrder) {
