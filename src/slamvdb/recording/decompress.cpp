@@ -82,12 +82,15 @@ void Decompressor::zstd_exact(std::span<const std::uint8_t> in, std::span<std::u
 }
 
 void Decompressor::lz4_frame_exact(std::span<const std::uint8_t> in, std::span<std::uint8_t> out,
-                                   std::string_view where) {
+                                   std::string_view where, bool checksums) {
   std::size_t in_pos = 0, out_pos = 0;
   std::size_t hint = 1;
+  LZ4F_decompressOptions_t options{};
+  options.stableDst = 1;  // one output buffer, written front to back: no copies through LZ4F's own
+  options.skipChecksums = checksums ? 0 : 1;
   while (in_pos < in.size()) {
     std::size_t out_size = out.size() - out_pos, in_size = in.size() - in_pos;
-    hint = LZ4F_decompress(contexts_->lz4, out.data() + out_pos, &out_size, in.data() + in_pos, &in_size, nullptr);
+    hint = LZ4F_decompress(contexts_->lz4, out.data() + out_pos, &out_size, in.data() + in_pos, &in_size, &options);
     if (LZ4F_isError(hint)) {
       contexts_->renew_lz4();
       throw Error(fmt::format("{}: the LZ4 data is damaged ({})", where, LZ4F_getErrorName(hint)));

@@ -80,7 +80,7 @@ void McapReader::load_chunk(const ChunkHeader& header, std::uint64_t offset, Byt
     if (zstd)
       decompressor_.zstd_exact(compressed_.span(), records.span(), where);
     else
-      decompressor_.lz4_frame_exact(compressed_.span(), records.span(), where);
+      decompressor_.lz4_frame_exact(compressed_.span(), records.span(), where, header.uncompressed_crc == 0);
   } else {
     throw Error(fmt::format("{} uses the compression \"{}\", which this reader does not know (it reads zstd, lz4 and "
                             "uncompressed chunks)",
