@@ -136,7 +136,7 @@ void add(CLI::App& root) {
   cmd->add_flag("--no-void-rule", opt->no_void_rule, "Let void classes win (the paper's rule is on by default)");
   cmd->add_flag("--ignore-model-id", opt->ignore_model_id,
                 "Accept queries whose model id differs from the map's (the dimension is still checked)");
-  cmd->parse_complete_callback([opt] {
+  add_option_checks(cmd, [opt] {
     if (!opt->png.empty() && std::filesystem::path(opt->png).extension() != ".png")
       usage_error(fmt::format("--png {}: the picture is written as .png", opt->png));
   });

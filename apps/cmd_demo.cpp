@@ -12,6 +12,7 @@
 
 #include "colour_basis_option.hpp"
 #include "command_registry.hpp"
+#include "option_checks.hpp"
 #include "demo_outputs.hpp"
 #include "progress.hpp"
 #include "slamvdb/eval/confusion_png.hpp"
@@ -208,8 +209,10 @@ void add(CLI::App& root) {
       "vectors on the first half, classify the map, evaluate it on the second half (paper Table 6.1) beside the "
       "per-image baseline, and write the pictures (class map, navigation grid, confusion matrix, a query heat map)");
   cmd->add_option("out,-o,--output", opt->out, "Output folder")->capture_default_str();
-  cmd->add_option("--length", opt->length, "Length of the simulated drive (m)")->capture_default_str()->check(CLI::Range(20.0, 10000.0));
-  cmd->add_option("--seed", opt->seed, "Seed of the simulated drive")->capture_default_str();
+  cmd->add_option("--length", opt->length, "Length of the simulated drive (m)")->capture_default_str()->check(finite_range(20.0, 10000.0));
+  cmd->add_option("--seed", opt->seed, "Seed of the simulated drive")
+      ->capture_default_str()
+      ->check(integer_range(0, bounds::kMaxSeed));
   cmd->add_flag("--fresh", opt->fresh, "Generate the sequence again even if the output folder has one");
   cmd->callback([opt] { run(*opt); });
 }

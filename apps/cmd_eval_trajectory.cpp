@@ -10,6 +10,7 @@
 #include <nlohmann/json.hpp>
 
 #include "command_registry.hpp"
+#include "option_checks.hpp"
 #include "slamvdb/core/error.hpp"
 #include "slamvdb/io/trajectory_io.hpp"
 #include "slamvdb/io/trajectory_plot.hpp"
@@ -121,7 +122,7 @@ void add(CLI::App& root) {
   cmd->add_option("--loops", opt->loops, "JSON summary of `slamvdb odometry --json` whose loops the plot draws")
       ->check(CLI::ExistingFile);
   cmd->add_option("--max-dt", opt->max_dt, "Largest stamp difference when pairing TUM files (s)")
-      ->check(CLI::PositiveNumber)->capture_default_str();
+      ->check(finite_range(0, 1e6, true))->capture_default_str();
   cmd->callback([opt] { run(*opt); });
 }
 

@@ -191,7 +191,7 @@ void add(CLI::App& root) {
   cmd->add_flag("--ignore-model-id", opt->ignore_model_id,
                 "With --queries or --colour-basis: accept another model id (same dim)");
   add_colour_basis_option(cmd, opt->colour_basis);
-  cmd->parse_complete_callback([opt] {
+  add_option_checks(cmd, [opt] {
     if (!opt->colour_basis.file.empty() && !opt->queries.empty())
       usage_error("--colour-basis colours by PCA; with --queries the colours are the classes'");
     if (!opt->ply.empty()) opt->outputs.push_back(opt->ply);

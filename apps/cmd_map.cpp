@@ -43,18 +43,11 @@ struct Options {
   bool odometry = false;
   TrackingOptions tracking;
   double queue_mb = 1024;
+  double max_memory_gb = 0;
   std::string occlusion = "active";
   double max_image_pixels = static_cast<double>(kDefaultMaxImagePixels);
   ColourBasisChoice colour_basis;
 };
-
-std::array<double, 5> parse_distortion(const std::string& text) {
-  std::istringstream in(text);
-  std::array<double, 5> d{};
-  for (double& v : d)
-    if (!(in >> v)) throw Error(fmt::format("--distortion '{}' needs five numbers: k1 k2 p1 p2 k3", text));
-  return d;
-}
 
 std::unique_ptr<FeatureSource> make_feature_source(const Options& opt, const Sequence& seq) {
   if (opt.features == "none") return nullptr;
@@ -128,7 +121,7 @@ void run(Options opt, const std::string& config) {
   opt.pipeline.map.semantic.precision = precision_from_string(opt.precision);
   opt.pipeline.map.validate();
   ReadOptions read_options;
-  if (!opt.distortion.empty()) read_options.distortion = parse_distortion(opt.distortion);
+  if (!opt.distortion.empty()) read_options.distortion = parse_distortion_option(opt.distortion);
   read_options.max_image_pixels = static_cast<std::int64_t>(opt.max_image_pixels);
   const Sequence seq = read_sequence(opt.dataset, read_options);
   fmt::print("sequence {} ({} layout): {} scans, {} images\n", seq.root.string(), seq.layout, seq.scans.size(),
@@ -257,10 +250,12 @@ void add(CLI::App& root) {
       ->check(finite_range(0, bounds::kMaxRange, true));
   cmd->add_option("--max-scans", opt->pipeline.max_scans, "Map only the first N scans (0: all)")
       ->capture_default_str()
-      ->check(integer_range(0, 1'000'000'000));
+      ->check(integer_range(0, bounds::kMaxCount));
   cmd->add_option("--distortion", opt->distortion, "Camera plumb_bob coefficients 'k1 k2 p1 p2 k3' (overrides the dataset)");
   cmd->add_option("--feature-size", opt->feature_size, "Simulated feature map size WIDTHxHEIGHT")->capture_default_str();
-  cmd->add_option("--sim-seed", opt->sim.seed, "Seed of the simulated encoder")->capture_default_str();
+  cmd->add_option("--sim-seed", opt->sim.seed, "Seed of the simulated encoder")
+      ->capture_default_str()
+      ->check(integer_range(0, bounds::kMaxSeed));
   cmd->add_option("--sim-feature-precision", opt->sim_feature_precision,
                   "Precision of the SIMULATED feature maps handed to fusion: fp32, or fp16 as a network run in half "
                   "precision gives them (the fp32 values rounded; fusion reads half the bytes). Networks and .npy "
@@ -297,7 +292,7 @@ void add(CLI::App& root) {
                 "Poses from the project's own LiDAR odometry and loop closure, computed over the scans before mapping "
                 "(placed at the first ground-truth pose when the sequence has one). `slamvdb slam` does both in one "
                 "pass instead");
-  cmd->add_flag("--no-loop-closure", [opt](std::int64_t) { opt->tracking.loop_closure = false; },
+  cmd->add_flag("--no-loop-closure", [opt](std::int64_t n) { opt->tracking.loop_closure = n <= 0; },
                 "With --odometry: odometry only");
   cmd->add_option("--pose-format", opt->pose_format, "Format of --poses: auto (from the first row), kitti or tum")
       ->capture_default_str()
@@ -312,10 +307,11 @@ void add(CLI::App& root) {
                   "the map file) and come back when it returns (0: keep all in memory)")
       ->capture_default_str()
       ->check(finite_range(0, 1e7));
+  add_max_memory_option(cmd, opt->max_memory_gb);
   add_colour_basis_option(cmd, opt->colour_basis);
-  cmd->parse_complete_callback([opt] {
-    check_map_options(opt->pipeline, opt->features, opt->feature_size, opt->sim_feature_precision, opt->precision,
-                      opt->distortion, opt->output);
+  add_option_checks(cmd, [opt] {
+    check_map_options(opt->pipeline, MappingChoices{opt->features, opt->feature_size, opt->sim_feature_precision,
+                                                    opt->precision, opt->distortion, opt->output, opt->max_memory_gb});
     check_colour_basis_option(opt->colour_basis, opt->pipeline.map.semantic.dim);
     if (opt->resume && opt->no_checkpoints) usage_error("--resume continues a map file written submap by submap: it "
                                                         "cannot go with --no-checkpoints");

@@ -12,6 +12,7 @@
 #include <optional>
 
 #include "command_registry.hpp"
+#include "option_checks.hpp"
 #include "progress.hpp"
 #include "slamvdb/core/error.hpp"
 #include "slamvdb/core/text_escape.hpp"
@@ -131,24 +132,19 @@ void add(CLI::App& root) {
                 "corrected poses");
   cmd->add_option("--json", opt->json, "Also write a JSON summary (counts, accepted loops)")->check(kWritableParent);
   cmd->add_option("--rate", opt->rate_hz, "Scan rate (Hz) for stamping a folder without times.txt")
-      ->check(CLI::PositiveNumber)->capture_default_str();
-  cmd->add_option("--voxel-size", opt->odometry.voxel_size, "Local-map voxel (m)")->check(CLI::Range(0.05, 10.0))->capture_default_str();
-  cmd->add_option("--max-range", opt->odometry.max_range, "Farthest return used (m)")->check(CLI::Range(1.0, 1000.0))->capture_default_str();
-  cmd->add_option("--min-range", opt->odometry.min_range, "Nearest return used (m)")->check(CLI::Range(0.0, 100.0))->capture_default_str();
+      ->check(finite_range(0, 1e6, true))->capture_default_str();
+  cmd->add_option("--voxel-size", opt->odometry.voxel_size, "Local-map voxel (m)")->check(finite_range(0.05, 10.0))->capture_default_str();
+  cmd->add_option("--max-range", opt->odometry.max_range, "Farthest return used (m)")->check(finite_range(1.0, 1000.0))->capture_default_str();
+  cmd->add_option("--min-range", opt->odometry.min_range, "Nearest return used (m)")->check(finite_range(0.0, 100.0))->capture_default_str();
   cmd->add_option("--keyframe-distance", opt->keyframe_distance, "Metres of path between loop-closure keyframes")
-      ->check(CLI::Range(0.1, 100.0))->capture_default_str();
+      ->check(finite_range(0.1, 100.0))->capture_default_str();
   cmd->add_option("--max-consecutive-failures", opt->max_consecutive_failures,
                   "Fail when more scans than this in a row cannot be registered")
-      ->check(CLI::NonNegativeNumber)->capture_default_str();
-  cmd->add_option("--threads", opt->threads, "Worker threads (0: all cores)")->check(CLI::NonNegativeNumber);
-  cmd->callback([opt] {
-    try {
-      opt->odometry.validate();
-    } catch (const Error& e) {
-      throw CLI::ValidationError(e.what());
-    }
-    run(*opt);
-  });
+      ->check(integer_range(0, bounds::kMaxCount))->capture_default_str();
+  cmd->add_option("--threads", opt->threads, "Worker threads (0: all cores)")->check(integer_range(0, bounds::kMaxThreads));
+  // The tracking checks `slam` runs too (the library's own).
+  add_option_checks(cmd, [opt] { check_as_usage([&] { opt->odometry.validate(); }); });
+  cmd->callback([opt] { run(*opt); });
 }
 
 const RegisterCommand reg{add};

@@ -278,14 +278,17 @@ void add(CLI::App& root) {
   cmd->add_option("--image-model", opt->image_model,
                   "TorchScript CLIP image encoder (default: the SIMULATED one, which reads a 2D label image)")
       ->check(CLI::ExistingFile);
-  cmd->add_option("--sim-seed", opt->sim_seed, "Seed of the simulated encoders (as for `map`)")->capture_default_str();
+  cmd->add_option("--sim-seed", opt->sim_seed, "Seed of the simulated encoders (as for `map`)")
+      ->capture_default_str()
+      ->check(integer_range(0, bounds::kMaxSeed));
   cmd->add_option("--sim-text-gap", opt->sim_text_gap, "SIMULATED text-image gap (see train-queries)")
       ->capture_default_str()
       ->check(kNonNegative);
   cmd->add_option("--top-k", opt->top_k, "Keep the K most similar voxels (0: all above --threshold)")
-      ->capture_default_str();
+      ->capture_default_str()
+      ->check(integer_range(0, bounds::kMaxCount));
   cmd->add_option("--threshold", opt->threshold, "Keep voxels whose cosine similarity is at least this")
-      ->check(CLI::Range(-1.0, 1.0));
+      ->check(finite_range(-1.0, 1.0));
   cmd->add_option("--at", opt->at,
                   "A world point to look up (repeatable): x,y,z or \"x y z\", decimal numbers with '.' (no hex, nan, "
                   "inf or trailing text)");
@@ -303,7 +306,7 @@ void add(CLI::App& root) {
                 "Accept an encoder or queries whose model id differs from the map's (the dimension is still checked)");
   cmd->add_option("--ply", opt->ply, "Also write the results as a PLY coloured by score");
   cmd->add_option("--png", opt->png, "Also write the heat map from above (PNG + map_server YAML)");
-  cmd->parse_complete_callback([opt] {
+  add_option_checks(cmd, [opt] {
     output_format(opt->output);
     if (!opt->ply.empty() && output_format(opt->ply) != ".ply") usage_error("--ply " + opt->ply + ": not a .ply name");
     if (!opt->png.empty() && output_format(opt->png) != ".png") usage_error("--png " + opt->png + ": not a .png name");

@@ -120,19 +120,25 @@ void add(CLI::App& root) {
   cmd->add_option("--ontology", opt->ontology, "Ontology YAML file, or a built-in one: rellis3d-coarse, rellis3d-fine")
       ->capture_default_str();
   auto& t = opt->train.trainer;
-  cmd->add_option("--epochs", t.epochs, "Passes over the training pixels")->capture_default_str()->check(kNonNegative);
-  cmd->add_option("--batch-size", t.batch_size, "Pixels per optimiser step")->capture_default_str()->check(kPositive);
+  cmd->add_option("--epochs", t.epochs, "Passes over the training pixels")
+      ->capture_default_str()
+      ->check(integer_range(0, 1'000'000));
+  cmd->add_option("--batch-size", t.batch_size, "Pixels per optimiser step")
+      ->capture_default_str()
+      ->check(integer_range(1, bounds::kMaxCount));
   cmd->add_option("--lr", t.learning_rate, "Adam learning rate")->capture_default_str()->check(kPositive);
   cmd->add_option("--temperature", t.temperature, "Softmax temperature: logits = cosine / T")
       ->capture_default_str()
       ->check(kPositive);
-  cmd->add_option("--seed", t.seed, "Seed for pixel sampling and shuffling (same seed, same vectors)")->capture_default_str();
+  cmd->add_option("--seed", t.seed, "Seed for pixel sampling and shuffling (same seed, same vectors)")
+      ->capture_default_str()
+      ->check(integer_range(0, bounds::kMaxSeed));
   cmd->add_option("--val-fraction", opt->train.val_fraction, "Share of the images (the last ones) used for validation")
       ->capture_default_str()
-      ->check(CLI::Range(0.0, 0.95));
+      ->check(finite_range(0.0, 0.95));
   cmd->add_option("--pixels-per-image", opt->train.pixels_per_image, "Labelled pixels sampled per image")
       ->capture_default_str()
-      ->check(kPositive);
+      ->check(integer_range(1, bounds::kMaxCount));
   cmd->add_option("--sampling", opt->sampling,
                   "Training pixel sampling: 'balanced' (even share per class in each image: more pixels of rare "
                   "classes, better rare-class recall) or 'uniform' (the paper's loss in expectation)")
