@@ -171,10 +171,10 @@ void run(const Options& opt) {
     fmt::print("\nTerrain segmentation accuracy of the map (paper Table 6.1 form, void ignored), {} scans:\n\n{}\n"
                "Per-image baseline, {} images:\n\n{}",
                e.scans, to_markdown(e.report), b.images, to_markdown(br));
-    write_file_atomically(out / "eval.md", to_markdown(e.report) + "\nPer-image baseline:\n\n" + to_markdown(br));
+    write_output_file(out / "eval.md", to_markdown(e.report) + "\nPer-image baseline:\n\n" + to_markdown(br));
     nlohmann::json json = nlohmann::json::parse(to_json(e.report));
     json["baseline"] = nlohmann::json::parse(to_json(br));
-    write_file_atomically(out / "eval.json", json.dump(2) + "\n");
+    write_output_file(out / "eval.json", json.dump(2) + "\n");
     write_confusion_png(out / "confusion.png", e.voxels, fmt::format("voxel-wise labelling, {} voxels", e.voxels.scored()));
     timings.emplace_back("evaluation", step.seconds());
   }

@@ -3,13 +3,13 @@
 #include <fmt/format.h>
 
 #include <chrono>
-#include <fstream>
 #include <nlohmann/json.hpp>
 #include <optional>
 
 #include "command_registry.hpp"
 #include "feature_options.hpp"
 #include "progress.hpp"
+#include "slamvdb/core/output_file.hpp"
 #include "slamvdb/eval/confusion_png.hpp"
 #include "slamvdb/eval/image_baseline.hpp"
 #include "slamvdb/eval/map_evaluation.hpp"
@@ -25,11 +25,6 @@ struct Options {
   FeatureOptions features;
   bool baseline = false, no_void_rule = false, ignore_model_id = false;
 };
-
-void write_file(const std::string& path, const std::string& text) {
-  std::ofstream out(path, std::ios::binary);
-  if (!out || !(out << text) || !out.flush()) throw Error(fmt::format("cannot write {}", path));
-}
 
 // --part A:B: the time fraction [A, B] of the drive (0:1 all of it; 0.5:1 its second half).
 std::pair<double, double> parse_part(const std::string& text) {
@@ -131,9 +126,9 @@ void run(Options opt) {
     json["baseline"]["images"] = b.images;
     markdown += "\nPer-image baseline:\n\n" + to_markdown(br);
   }
-  if (!opt.markdown.empty()) write_file(opt.markdown, markdown);
-  if (!opt.json.empty()) write_file(opt.json, json.dump(2) + "\n");
-  if (!opt.csv.empty()) write_file(opt.csv, to_csv(r.report));
+  if (!opt.markdown.empty()) write_output_file(opt.markdown, markdown);
+  if (!opt.json.empty()) write_output_file(opt.json, json.dump(2) + "\n");
+  if (!opt.csv.empty()) write_output_file(opt.csv, to_csv(r.report));
   if (!opt.png.empty())
     write_confusion_png(opt.png, r.voxels, fmt::format("voxel-wise labelling, {} voxels", r.voxels.scored()));
 }

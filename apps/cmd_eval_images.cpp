@@ -4,12 +4,12 @@
 #include <fmt/format.h>
 
 #include <chrono>
-#include <fstream>
 #include <optional>
 
 #include "command_registry.hpp"
 #include "feature_options.hpp"
 #include "progress.hpp"
+#include "slamvdb/core/output_file.hpp"
 #include "slamvdb/eval/confusion_png.hpp"
 #include "slamvdb/eval/image_baseline.hpp"
 #include "slamvdb/io/sequence_reader.hpp"
@@ -22,11 +22,6 @@ struct Options {
   FeatureOptions features;
   bool no_void_rule = false, ignore_model_id = false;
 };
-
-void write_file(const std::string& path, const std::string& text) {
-  std::ofstream out(path, std::ios::binary);
-  if (!out || !(out << text) || !out.flush()) throw Error(fmt::format("cannot write {}", path));
-}
 
 void run(const Options& opt) {
   check_feature_options(opt.features);
@@ -57,9 +52,9 @@ void run(const Options& opt) {
              "{} ({}), void -> second best {}\n\n{}",
              r.images, r.pixels, r.unlabelled_pixels, opt.queries, queries.model_id, opt.no_void_rule ? "off" : "on",
              to_markdown(report));
-  if (!opt.markdown.empty()) write_file(opt.markdown, to_markdown(report));
-  if (!opt.json.empty()) write_file(opt.json, to_json(report));
-  if (!opt.csv.empty()) write_file(opt.csv, to_csv(report));
+  if (!opt.markdown.empty()) write_output_file(opt.markdown, to_markdown(report));
+  if (!opt.json.empty()) write_output_file(opt.json, to_json(report));
+  if (!opt.csv.empty()) write_output_file(opt.csv, to_csv(report));
   if (!opt.png.empty())
     write_confusion_png(opt.png, r.matrix, fmt::format("per-image baseline, {} images", r.images));
 }

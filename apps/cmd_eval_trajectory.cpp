@@ -5,12 +5,12 @@
 
 #include <algorithm>
 #include <filesystem>
-#include <fstream>
 #include <memory>
 #include <nlohmann/json.hpp>
 
 #include "command_registry.hpp"
 #include "slamvdb/core/error.hpp"
+#include "slamvdb/core/output_file.hpp"
 #include "slamvdb/io/trajectory_io.hpp"
 #include "slamvdb/io/trajectory_plot.hpp"
 #include "slamvdb/localization/trajectory_metrics.hpp"
@@ -94,9 +94,7 @@ void run(const Options& opt) {
         {"rpe", {{"translation_rmse_m", rpe.translation_rmse}, {"rotation_rmse_deg", rpe.rotation_rmse_deg}}},
         {"drift", {{"translation_percent", drift.translation_percent}, {"rotation_deg_per_m", drift.rotation_deg_per_m},
                    {"segments", drift.segments}, {"segment_lengths_m", drift.lengths}}}};
-    std::ofstream out(opt.json);
-    out << j.dump(2) << "\n";
-    if (!out) throw Error(fmt::format("cannot write {}", opt.json));
+    write_output_file(opt.json, j.dump(2) + "\n");
   }
 }
 

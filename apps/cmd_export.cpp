@@ -17,7 +17,7 @@
 #include "option_checks.hpp"
 #include "progress.hpp"
 #include "slamvdb/core/error.hpp"
-#include "slamvdb/io/atomic_file.hpp"
+#include "slamvdb/core/output_file.hpp"
 #include "slamvdb/io/html_viewer.hpp"
 #include "slamvdb/io/map_export.hpp"
 #include "slamvdb/io/map_pictures.hpp"
@@ -96,14 +96,14 @@ void run(Options opt) {
     const auto t = std::chrono::steady_clock::now();
     if (format == "ply") {
       std::optional<ProgressBar> bar;
-      write_ply(output, voxels, opt.ascii ? PlyEncoding::kAscii : PlyEncoding::kBinaryLittleEndian,
+      const std::uint64_t bytes = write_ply(output, voxels, opt.ascii ? PlyEncoding::kAscii : PlyEncoding::kBinaryLittleEndian,
                 [&](std::size_t done, std::size_t total) {
                   if (!bar) bar.emplace("export ply", total, "voxels");
                   bar->update(done);
                 });
       if (bar) bar->finish();
       fmt::print("PLY  {}: {} vertices (x y z float, red green blue uchar, count int), {:.1f} MB", output,
-                 voxels.size(), static_cast<double>(fs::file_size(output)) / 1e6);
+                 voxels.size(), static_cast<double>(bytes) / 1e6);
     } else if (format == "pcd") {
       write_pcd_voxels(output, voxels);
       fmt::print("PCD  {}: {} points (x y z rgb count, binary)", output, voxels.size());
@@ -135,7 +135,7 @@ void run(Options opt) {
         std::size_t rows = 0;
         for (const ColouredVoxel& v : colour_occupied_voxels(map, [](const float*) { return Rgb{}; }))
           if (v.count) csv += fmt::format("{:.3f},{:.3f},{:.3f},{}\n", v.position.x(), v.position.y(), v.position.z(), v.count), ++rows;
-        write_file_atomically(output, csv);
+        write_output_file(output, csv);
         fmt::print("CSV  {}: {} rows x,y,z,count (give --queries for class,score,margin)", output, rows);
       }
     } else if (format == "npy") {

@@ -193,10 +193,9 @@ void run(Options opt, const std::string& config) {
   map.set_info(final_info);
   record_colour_basis(map, opt.colour_basis);
   // With submaps unloaded, memory holds only part of the map: its size is then not recorded.
-  if (writer) writer->finish(map.info(), report.submaps_unloaded ? 0 : map.memory_bytes());
-  else save_map(opt.output, map);
   // What the file holds (with submaps unloaded during the run, more than memory does now).
-  const MapFileSummary saved = read_map_summary(opt.output);
+  const MapFileSummary saved = writer ? writer->finish(map.info(), report.submaps_unloaded ? 0 : map.memory_bytes())
+                                      : save_map(opt.output, map);
   fmt::print("map saved to {}: {} submaps, {} occupied voxels, {} semantic entries ({} {}-d), {:.1f} MB file{}\n",
              opt.output, saved.submaps.size(), saved.occupied_voxels, saved.semantic_voxels, opt.precision,
              map.params().semantic.dim, saved.file_bytes / 1e6,

@@ -6,7 +6,6 @@
 
 #include <chrono>
 #include <filesystem>
-#include <fstream>
 #include <map>
 #include <memory>
 #include <nlohmann/json.hpp>
@@ -15,6 +14,7 @@
 #include "command_registry.hpp"
 #include "progress.hpp"
 #include "slamvdb/core/error.hpp"
+#include "slamvdb/core/output_file.hpp"
 #include "slamvdb/io/scan_source.hpp"
 #include "slamvdb/io/trajectory_io.hpp"
 #include "slamvdb/localization/loop_closure.hpp"
@@ -125,11 +125,7 @@ void run(const Options& opt) {
     summary["loops_rejected"] = rejected;
   }
   fmt::print("  poses written to {} ({})\n", opt.output, opt.format == PoseFormat::kKitti ? "KITTI" : "TUM");
-  if (!opt.json.empty()) {
-    std::ofstream out(opt.json);
-    out << summary.dump(2) << "\n";
-    if (!out) throw Error(fmt::format("cannot write {}", opt.json));
-  }
+  if (!opt.json.empty()) write_output_file(opt.json, summary.dump(2) + "\n");
 }
 
 void add(CLI::App& root) {

@@ -12,7 +12,7 @@
 #include "slamvdb/core/regular_file.hpp"
 #include "slamvdb/inference/simulated_encoders.hpp"
 #include "demo_outputs.hpp"
-#include "slamvdb/io/atomic_file.hpp"
+#include "slamvdb/core/output_file.hpp"
 #include "slamvdb/io/html_viewer.hpp"
 #include "slamvdb/io/image_io.hpp"
 #include "slamvdb/io/map_pictures.hpp"
@@ -179,7 +179,7 @@ void run_points(const Options& opt, const SemanticMap& map) {
   if (opt.output.empty()) {
     fmt::print("{}", csv);
   } else {
-    write_file_atomically(opt.output, csv);
+    write_output_file(opt.output, csv);
     fmt::print("{} points, {} in a semantic voxel: {}\n", answers.size(),
                std::count_if(answers.begin(), answers.end(), [](const PointQuery& a) { return a.found; }), opt.output);
   }
@@ -233,7 +233,7 @@ void write_results(const std::string& format, const std::string& output, const O
       csv += fmt::format("{},{:.3f},{:.3f},{:.3f},{:.6f},{}\n", i + 1, results[i].position_world.x(),
                          results[i].position_world.y(), results[i].position_world.z(), results[i].score,
                          results[i].count);
-    write_file_atomically(output, csv);
+    write_output_file(output, csv);
     fmt::print("CSV  {}: {} rows\n", output, results.size());
   } else if (format == ".png") {
     std::vector<ClassifiedCell> cells;

@@ -12,7 +12,7 @@
 #include "slamvdb/core/error.hpp"
 #include "slamvdb/core/ontology.hpp"
 #include "slamvdb/core/text_escape.hpp"
-#include "slamvdb/io/atomic_file.hpp"
+#include "slamvdb/core/output_file.hpp"
 #include "slamvdb/io/image_io.hpp"
 #include "slamvdb/inference/simulated_encoders.hpp"
 #include "slamvdb/io/npy.hpp"
@@ -106,7 +106,7 @@ cv::Mat best_class(const FeatureMap& features, const std::vector<std::vector<flo
 void write_png_atomically(const fs::path& path, const cv::Mat& image) {
   std::vector<uchar> png;
   if (!cv::imencode(".png", image, png)) throw Error(fmt::format("cannot encode {}", path.string()));
-  write_file_atomically(path, std::string_view(reinterpret_cast<const char*>(png.data()), png.size()));
+  write_output_file(path, std::string_view(reinterpret_cast<const char*>(png.data()), png.size()));
 }
 
 void run(const Options& opt) {
@@ -150,7 +150,7 @@ void run(const Options& opt) {
     legend += fmt::format("{}\t{}\t#{:02x}{:02x}{:02x}\t{}\t{:.1f}%\n", k, names[k], colours[k][0], colours[k][1],
                           colours[k][2], counts[k], 100.0 * counts[k] / total);
   }
-  write_file_atomically(opt.out_dir / "legend.txt", legend);
+  write_output_file(opt.out_dir / "legend.txt", legend);
   // Model ids come from manifests, class names from the user: printed with control characters escaped.
   std::printf("%s: %d x %d x %d features (%s), best of %zu classes (%s) -> %s\n", escape_control(frame.source).c_str(),
               features.dim(), features.height(), features.width(), escape_control(enc.dense->model_id()).c_str(),

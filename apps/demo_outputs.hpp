@@ -9,7 +9,7 @@
 #include "slamvdb/core/error.hpp"
 #include "slamvdb/inference/simulated_encoders.hpp"
 #include "slamvdb/io/map_export.hpp"
-#include "slamvdb/io/atomic_file.hpp"
+#include "slamvdb/core/output_file.hpp"
 #include "slamvdb/io/html_viewer.hpp"
 #include "slamvdb/io/map_pictures.hpp"
 #include "slamvdb/io/nav_grid_files.hpp"
@@ -33,7 +33,7 @@ inline void write_classified_csv(const std::filesystem::path& path, const std::v
     csv += fmt::format("{:.3f},{:.3f},{:.3f},{},{:.6f},{:.6f},{}\n", p.x(), p.y(), p.z(), name, c.match.score,
                        c.match.margin, c.count);
   }
-  write_file_atomically(path, csv);
+  write_output_file(path, csv);
 }
 
 // The map's occupied voxels in the world, semantic ones coloured by `colour_of(index into cells)`
