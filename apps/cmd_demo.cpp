@@ -12,6 +12,7 @@
 
 #include "colour_basis_option.hpp"
 #include "command_registry.hpp"
+#include "io_options.hpp"
 #include "demo_outputs.hpp"
 #include "progress.hpp"
 #include "slamvdb/eval/confusion_png.hpp"
@@ -211,7 +212,12 @@ void add(CLI::App& root) {
   cmd->add_option("--length", opt->length, "Length of the simulated drive (m)")->capture_default_str()->check(CLI::Range(20.0, 10000.0));
   cmd->add_option("--seed", opt->seed, "Seed of the simulated drive")->capture_default_str();
   cmd->add_flag("--fresh", opt->fresh, "Generate the sequence again even if the output folder has one");
-  cmd->callback([opt] { run(*opt); });
+  auto io = std::make_shared<IoOptions>(cmd);
+  io->output_folder("-o", opt->out, {}, /*lock=*/true);  // filled for minutes: one run at a time
+  cmd->callback([opt, io] {
+    io->check();
+    run(*opt);
+  });
 }
 
 const RegisterCommand reg{add};

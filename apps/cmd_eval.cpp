@@ -8,6 +8,7 @@
 
 #include "command_registry.hpp"
 #include "feature_options.hpp"
+#include "io_options.hpp"
 #include "progress.hpp"
 #include "slamvdb/core/output_file.hpp"
 #include "slamvdb/eval/confusion_png.hpp"
@@ -47,9 +48,6 @@ struct Timer {
 void run(Options opt) {
   check_feature_options(opt.features);
   const auto [from, to] = parse_part(opt.part);
-  for (const auto& [file, option] : {std::pair{opt.markdown, "--output"}, {opt.json, "--json"}, {opt.csv, "--csv"},
-                                     {opt.png, "--png"}})
-    if (!file.empty()) check_output_file(file, option);
   const QuerySet queries = load_query_set(opt.queries);
   const Ontology ontology = Ontology::load_or_builtin(opt.ontology);
   ontology_classes_of(queries, ontology);  // fail before any long work
@@ -160,7 +158,20 @@ void add(CLI::App& root) {
   cmd->add_flag("--ignore-model-id", opt->ignore_model_id,
                 "Accept queries whose model id differs from the map's (the dimension is still checked)");
   add_feature_options(cmd, opt->features, false);
-  cmd->callback([opt] { run(*opt); });
+  auto io = std::make_shared<IoOptions>(cmd);
+  io->input("map", opt->map);
+  io->input("dataset", opt->dataset);
+  io->input("--queries", opt->queries);
+  io->input("--ontology", opt->ontology);
+  add_feature_inputs(*io, opt->features);
+  io->output("-o", opt->markdown);
+  io->output("--json", opt->json);
+  io->output("--csv", opt->csv);
+  io->output("--png", opt->png);
+  cmd->callback([opt, io] {
+    io->check();
+    run(*opt);
+  });
 }
 
 const RegisterCommand reg{add};

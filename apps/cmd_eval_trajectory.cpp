@@ -9,6 +9,7 @@
 #include <nlohmann/json.hpp>
 
 #include "command_registry.hpp"
+#include "io_options.hpp"
 #include "slamvdb/core/error.hpp"
 #include "slamvdb/core/output_file.hpp"
 #include "slamvdb/io/trajectory_io.hpp"
@@ -18,7 +19,6 @@
 namespace slamvdb::cli::cmd_eval_trajectory {
 namespace {
 
-namespace fs = std::filesystem;
 using namespace slamvdb::localization;
 
 struct Options {
@@ -98,14 +98,6 @@ void run(const Options& opt) {
   }
 }
 
-const CLI::Validator kWritableParent(
-    [](std::string& path) -> std::string {
-      const fs::path parent = fs::absolute(fs::path(path)).parent_path();
-      if (!fs::is_directory(parent)) return fmt::format("directory {} does not exist", parent.string());
-      return {};
-    },
-    "PATH", "in an existing directory");
-
 void add(CLI::App& root) {
   auto opt = std::make_shared<Options>();
   auto* cmd = root.add_subcommand(
@@ -114,13 +106,22 @@ void add(CLI::App& root) {
       "alignment, RPE, KITTI-style drift (segments of 100..800 m, or 10..50% of a path shorter than 200 m).");
   cmd->add_option("estimate", opt->estimate, "Estimated poses")->required()->check(CLI::ExistingFile);
   cmd->add_option("truth", opt->truth, "Ground-truth poses")->required()->check(CLI::ExistingFile);
-  cmd->add_option("--png", opt->png, "Write a plot seen from above")->check(kWritableParent);
-  cmd->add_option("-o,--output,--json", opt->json, "Write the metrics as JSON")->check(kWritableParent);
+  cmd->add_option("--png", opt->png, "Write a plot seen from above");
+  cmd->add_option("-o,--output,--json", opt->json, "Write the metrics as JSON");
   cmd->add_option("--loops", opt->loops, "JSON summary of `slamvdb odometry --json` whose loops the plot draws")
       ->check(CLI::ExistingFile);
   cmd->add_option("--max-dt", opt->max_dt, "Largest stamp difference when pairing TUM files (s)")
       ->check(CLI::PositiveNumber)->capture_default_str();
-  cmd->callback([opt] { run(*opt); });
+  auto io = std::make_shared<IoOptions>(cmd);
+  io->input("estimate", opt->estimate);
+  io->input("truth", opt->truth);
+  io->input("--loops", opt->loops);
+  io->output("--png", opt->png);
+  io->output("-o", opt->json);
+  cmd->callback([opt, io] {
+    io->check();
+    run(*opt);
+  });
 }
 
 const RegisterCommand reg{add};

@@ -14,6 +14,7 @@
 #include "command_registry.hpp"
 #include "demo_outputs.hpp"
 #include "feature_options.hpp"
+#include "io_options.hpp"
 #include "option_checks.hpp"
 #include "progress.hpp"
 #include "slamvdb/core/error.hpp"
@@ -202,10 +203,23 @@ void add(CLI::App& root) {
       const std::string format = format_of(output, opt->outputs.size() == 1 ? opt->format : "");
       if (format == "html" && !html_viewer_available())
         usage_error("-o " + output + ": this slamvdb was built without the HTML viewer (npm ci --prefix viewer)");
-      check_output_file(output, "--output");
     }
   });
-  cmd->callback([opt] { run(*opt); });
+  auto io = std::make_shared<IoOptions>(cmd);
+  io->input("map", opt->map);
+  io->input("--queries", opt->queries);
+  io->input("--colour-basis", opt->colour_basis.file);
+  // -o, with --ply and --png added to it once parsed; a PNG has its .yaml, an NPY three files.
+  io->output("-o", opt->outputs, [opt](const std::string& output) -> std::vector<fs::path> {
+    const std::string format = format_of(output, opt->outputs.size() == 1 ? opt->format : "");
+    if (format == "png") return png_with_yaml(output);
+    if (format == "npy") return embeddings_npy_files(output);
+    return {output};
+  });
+  cmd->callback([opt, io] {
+    io->check();
+    run(*opt);
+  });
 }
 
 const RegisterCommand reg{add};

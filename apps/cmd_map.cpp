@@ -8,6 +8,7 @@
 
 #include "colour_basis_option.hpp"
 #include "command_registry.hpp"
+#include "io_options.hpp"
 #include "yaml_config.hpp"
 #include "map_option_checks.hpp"
 #include "option_checks.hpp"
@@ -325,7 +326,16 @@ void add(CLI::App& root) {
     if (opt->pipeline.unload_radius > 0 && opt->no_checkpoints)
       usage_error("--unload-radius needs the map file written while mapping: it cannot go with --no-checkpoints");
   });
-  cmd->callback([opt, cmd] { run(*opt, effective_config(*cmd)); });
+  auto io = std::make_shared<IoOptions>(cmd);
+  io->input("dataset", opt->dataset);
+  io->input("--poses", opt->poses);
+  io->input("--model", opt->model);
+  io->input("--colour-basis", opt->colour_basis.file);
+  io->output("-o", opt->output, {}, /*lock=*/true);  // written while mapping: one run at a time
+  cmd->callback([opt, cmd, io] {
+    io->check();
+    run(*opt, effective_config(*cmd));
+  });
 }
 
 const RegisterCommand reg{add};

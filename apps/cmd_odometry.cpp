@@ -12,6 +12,7 @@
 #include <optional>
 
 #include "command_registry.hpp"
+#include "io_options.hpp"
 #include "progress.hpp"
 #include "slamvdb/core/error.hpp"
 #include "slamvdb/core/output_file.hpp"
@@ -23,7 +24,6 @@
 namespace slamvdb::cli::cmd_odometry {
 namespace {
 
-namespace fs = std::filesystem;
 using namespace slamvdb::localization;
 
 struct Options {
@@ -36,15 +36,6 @@ struct Options {
   int max_consecutive_failures = 10;
   int threads = 0;
 };
-
-const CLI::Validator kWritableParent(
-    [](std::string& path) -> std::string {
-      const fs::path parent = fs::absolute(fs::path(path)).parent_path();
-      if (!fs::is_directory(parent)) return fmt::format("directory {} does not exist", parent.string());
-      if (fs::is_directory(path)) return fmt::format("{} is a directory", path);
-      return {};
-    },
-    "PATH", "in an existing directory");
 
 void run(const Options& opt) {
   std::optional<tbb::global_control> threads;
@@ -136,7 +127,7 @@ void add(CLI::App& root) {
       "folder of scan files (KITTI .bin or .pcd, in name order; stamps from times.txt there, else index / --rate), "
       "optionally with loop closure; writes T_world_sensor per scan (world = the first scan's sensor frame).");
   cmd->add_option("input", opt->input, "Dataset folder or folder of .bin / .pcd scans")->required()->check(CLI::ExistingDirectory);
-  cmd->add_option("-o,--output", opt->output, "Pose file to write")->required()->check(kWritableParent);
+  cmd->add_option("-o,--output", opt->output, "Pose file to write")->required();
   cmd->add_option("--format", opt->format, "Pose file format: kitti (3x4 rows) or tum (stamp tx ty tz qx qy qz qw)")
       ->transform(CLI::CheckedTransformer(std::map<std::string, PoseFormat>{{"kitti", PoseFormat::kKitti},
                                                                              {"tum", PoseFormat::kTum}}))
@@ -144,7 +135,7 @@ void add(CLI::App& root) {
   cmd->add_flag("--loop-closure", opt->loop_closure,
                 "Close loops (ScanContext + proximity candidates, ICP verification, pose graph) and write the "
                 "corrected poses");
-  cmd->add_option("--json", opt->json, "Also write a JSON summary (counts, accepted loops)")->check(kWritableParent);
+  cmd->add_option("--json", opt->json, "Also write a JSON summary (counts, accepted loops)");
   cmd->add_option("--rate", opt->rate_hz, "Scan rate (Hz) for stamping a folder without times.txt")
       ->check(CLI::PositiveNumber)->capture_default_str();
   cmd->add_option("--voxel-size", opt->odometry.voxel_size, "Local-map voxel (m)")->check(CLI::Range(0.05, 10.0))->capture_default_str();
@@ -156,7 +147,12 @@ void add(CLI::App& root) {
                   "Fail when more scans than this in a row cannot be registered")
       ->check(CLI::NonNegativeNumber)->capture_default_str();
   cmd->add_option("--threads", opt->threads, "Worker threads (0: all cores)")->check(CLI::NonNegativeNumber);
-  cmd->callback([opt] {
+  auto io = std::make_shared<IoOptions>(cmd);
+  io->input("input", opt->input);
+  io->output("-o", opt->output);
+  io->output("--json", opt->json);
+  cmd->callback([opt, io] {
+    io->check();
     try {
       opt->odometry.validate();
     } catch (const Error& e) {

@@ -8,6 +8,7 @@
 
 #include "command_registry.hpp"
 #include "feature_options.hpp"
+#include "io_options.hpp"
 #include "option_checks.hpp"
 #include "slamvdb/core/regular_file.hpp"
 #include "slamvdb/inference/simulated_encoders.hpp"
@@ -202,7 +203,6 @@ void run(const Options& opt) {
   if (spatial) {
     for (const auto& p : opt.at) parse_point(p, "--at");
   }
-  if (!opt.output.empty()) check_output_file(opt.output, "--output");
   const SemanticMap map = load_map(opt.map);
   if (spatial) return run_points(opt, map);
 
@@ -312,10 +312,26 @@ void add(CLI::App& root) {
     output_format(opt->output);
     if (!opt->ply.empty() && output_format(opt->ply) != ".ply") usage_error("--ply " + opt->ply + ": not a .ply name");
     if (!opt->png.empty() && output_format(opt->png) != ".png") usage_error("--png " + opt->png + ": not a .png name");
-    for (const std::string* o : {&opt->output, &opt->ply, &opt->png})
-      if (!o->empty()) check_output_file(*o, "--output");
   });
-  cmd->callback([opt] { run(*opt); });
+  auto io = std::make_shared<IoOptions>(cmd);
+  io->input("map", opt->map);
+  io->input("--queries", opt->queries);
+  io->input("--image", opt->images);
+  io->input("--vector", opt->vectors);
+  io->input("--not-vector", opt->not_vectors);
+  io->input("--text-model", opt->text_model);
+  io->input("--image-model", opt->image_model);
+  io->input("--at-csv", opt->at_csv);
+  const FilesOf files_of = [](const std::string& output) {
+    return output_format(output) == ".png" ? png_with_yaml(output) : std::vector<std::filesystem::path>{output};
+  };
+  io->output("-o", opt->output, files_of);
+  io->output("--ply", opt->ply);
+  io->output("--png", opt->png, files_of);
+  cmd->callback([opt, io] {
+    io->check();
+    run(*opt);
+  });
 }
 
 const RegisterCommand reg{add};

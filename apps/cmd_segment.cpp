@@ -8,6 +8,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "command_registry.hpp"
+#include "io_options.hpp"
 #include "option_checks.hpp"
 #include "slamvdb/core/error.hpp"
 #include "slamvdb/core/ontology.hpp"
@@ -184,7 +185,19 @@ void add(CLI::App& root) {
   cmd->add_option("--labels", opt->labels, "2D label PNG of the image (RELLIS-3D ids), for --simulated")
       ->needs(simulated)
       ->check(CLI::ExistingFile);
-  cmd->callback([opt] { run(*opt); });
+  auto io = std::make_shared<IoOptions>(cmd);
+  io->input("image", opt->image);
+  io->input("--model", opt->model);
+  io->input("--text-model", opt->text_model);
+  io->input("--labels", opt->labels);
+  io->output_folder("-o", opt->out_dir, [](const std::string& dir) -> std::vector<fs::path> {
+    return {fs::path(dir) / "features.npy", fs::path(dir) / "labels.png", fs::path(dir) / "classes.png",
+            fs::path(dir) / "legend.txt"};
+  });
+  cmd->callback([opt, io] {
+    io->check();
+    run(*opt);
+  });
 }
 
 const RegisterCommand reg{add};

@@ -11,6 +11,7 @@
 #include "command_registry.hpp"
 #include "yaml_config.hpp"
 #include "feature_options.hpp"
+#include "io_options.hpp"
 #include "option_checks.hpp"
 #include "progress.hpp"
 #include "slamvdb/core/error.hpp"
@@ -149,8 +150,6 @@ void add(CLI::App& root) {
   cmd->parse_complete_callback([opt] {
     check_feature_options(opt->features);
     check_colour_basis_option(opt->colour_basis, opt->features.dim);
-    check_output_file(opt->output, "-o");
-    if (!opt->poses_out.empty()) check_output_file(opt->poses_out, "--poses-out");
     try {
       opt->tracking.odometry.validate();
       opt->tracking.loops.validate();
@@ -159,7 +158,14 @@ void add(CLI::App& root) {
       usage_error(e.what());
     }
   });
-  cmd->callback([opt, cmd] {
+  auto io = std::make_shared<IoOptions>(cmd);
+  io->input("dataset", opt->dataset);
+  io->input("--colour-basis", opt->colour_basis.file);
+  add_feature_inputs(*io, opt->features);
+  io->output("-o", opt->output, {}, /*lock=*/true);  // one run at a time
+  io->output("--poses-out", opt->poses_out);
+  cmd->callback([opt, cmd, io] {
+    io->check();
     opt->pipeline.map.semantic.dim = opt->features.dim;
     run(*opt, effective_config(*cmd));
   });
