@@ -8,6 +8,7 @@
 
 #include "colour_basis_option.hpp"
 #include "command_registry.hpp"
+#include "io_options.hpp"
 #include "yaml_config.hpp"
 #include "map_option_checks.hpp"
 #include "option_checks.hpp"
@@ -186,10 +187,9 @@ void run(Options opt, const std::string& config) {
   map.set_info(final_info);
   record_colour_basis(map, opt.colour_basis);
   // With submaps unloaded, memory holds only part of the map: its size is then not recorded.
-  if (writer) writer->finish(map.info(), report.submaps_unloaded ? 0 : map.memory_bytes());
-  else save_map(opt.output, map);
   // What the file holds (with submaps unloaded during the run, more than memory does now).
-  const MapFileSummary saved = read_map_summary(opt.output);
+  const MapFileSummary saved = writer ? writer->finish(map.info(), report.submaps_unloaded ? 0 : map.memory_bytes())
+                                      : save_map(opt.output, map);
   fmt::print("map saved to {}: {} submaps, {} occupied voxels, {} semantic entries ({} {}-d), {:.1f} MB file{}\n",
              opt.output, saved.submaps.size(), saved.occupied_voxels, saved.semantic_voxels, opt.precision,
              map.params().semantic.dim, saved.file_bytes / 1e6,
@@ -311,7 +311,7 @@ void add(CLI::App& root) {
   add_colour_basis_option(cmd, opt->colour_basis);
   add_option_checks(cmd, [opt] {
     check_map_options(opt->pipeline, MappingChoices{opt->features, opt->feature_size, opt->sim_feature_precision,
-                                                    opt->precision, opt->distortion, opt->output, opt->max_memory_gb});
+                                                    opt->precision, opt->distortion, opt->max_memory_gb});
     check_colour_basis_option(opt->colour_basis, opt->pipeline.map.semantic.dim);
     if (opt->resume && opt->no_checkpoints) usage_error("--resume continues a map file written submap by submap: it "
                                                         "cannot go with --no-checkpoints");
@@ -322,7 +322,16 @@ void add(CLI::App& root) {
     if (opt->pipeline.unload_radius > 0 && opt->no_checkpoints)
       usage_error("--unload-radius needs the map file written while mapping: it cannot go with --no-checkpoints");
   });
-  cmd->callback([opt, cmd] { run(*opt, effective_config(*cmd)); });
+  auto io = std::make_shared<IoOptions>(cmd);
+  io->input("dataset", opt->dataset);
+  io->input("--poses", opt->poses);
+  io->input("--model", opt->model);
+  io->input("--colour-basis", opt->colour_basis.file);
+  io->output("-o", opt->output, {}, /*lock=*/true);  // written while mapping: one run at a time
+  cmd->callback([opt, cmd, io] {
+    io->check();
+    run(*opt, effective_config(*cmd));
+  });
 }
 
 const RegisterCommand reg{add};

@@ -5,16 +5,17 @@
 #include <tbb/global_control.h>
 
 #include <filesystem>
-#include <fstream>
 #include <map>
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <optional>
 
 #include "command_registry.hpp"
+#include "io_options.hpp"
 #include "option_checks.hpp"
 #include "progress.hpp"
 #include "slamvdb/core/error.hpp"
+#include "slamvdb/core/output_file.hpp"
 #include "slamvdb/core/text_escape.hpp"
 #include "slamvdb/io/scan_source.hpp"
 #include "slamvdb/io/trajectory_io.hpp"
@@ -25,7 +26,6 @@
 namespace slamvdb::cli::cmd_odometry {
 namespace {
 
-namespace fs = std::filesystem;
 using namespace slamvdb::localization;
 
 struct Options {
@@ -38,15 +38,6 @@ struct Options {
   int max_consecutive_failures = 10;
   int threads = 0;
 };
-
-const CLI::Validator kWritableParent(
-    [](std::string& path) -> std::string {
-      const fs::path parent = fs::absolute(fs::path(path)).parent_path();
-      if (!fs::is_directory(parent)) return fmt::format("directory {} does not exist", parent.string());
-      if (fs::is_directory(path)) return fmt::format("{} is a directory", path);
-      return {};
-    },
-    "PATH", "in an existing directory");
 
 void run(const Options& opt) {
   std::optional<tbb::global_control> threads;
@@ -107,11 +98,7 @@ void run(const Options& opt) {
     summary["loops_rejected"] = rejected;
   }
   fmt::print("  poses written to {} ({})\n", opt.output, opt.format == PoseFormat::kKitti ? "KITTI" : "TUM");
-  if (!opt.json.empty()) {
-    std::ofstream out(opt.json);
-    out << summary.dump(2) << "\n";
-    if (!out) throw Error(fmt::format("cannot write {}", opt.json));
-  }
+  if (!opt.json.empty()) write_output_file(opt.json, summary.dump(2) + "\n");
 }
 
 void add(CLI::App& root) {
@@ -122,7 +109,7 @@ void add(CLI::App& root) {
       "folder of scan files (KITTI .bin or .pcd, in name order; stamps from times.txt there, else index / --rate), "
       "optionally with loop closure; writes T_world_sensor per scan (world = the first scan's sensor frame).");
   cmd->add_option("input", opt->input, "Dataset folder or folder of .bin / .pcd scans")->required()->check(CLI::ExistingDirectory);
-  cmd->add_option("-o,--output", opt->output, "Pose file to write")->required()->check(kWritableParent);
+  cmd->add_option("-o,--output", opt->output, "Pose file to write")->required();
   cmd->add_option("--format", opt->format, "Pose file format: kitti (3x4 rows) or tum (stamp tx ty tz qx qy qz qw)")
       ->transform(CLI::CheckedTransformer(std::map<std::string, PoseFormat>{{"kitti", PoseFormat::kKitti},
                                                                              {"tum", PoseFormat::kTum}}))
@@ -130,7 +117,7 @@ void add(CLI::App& root) {
   cmd->add_flag("--loop-closure", opt->loop_closure,
                 "Close loops (ScanContext + proximity candidates, ICP verification, pose graph) and write the "
                 "corrected poses");
-  cmd->add_option("--json", opt->json, "Also write a JSON summary (counts, accepted loops)")->check(kWritableParent);
+  cmd->add_option("--json", opt->json, "Also write a JSON summary (counts, accepted loops)");
   cmd->add_option("--rate", opt->rate_hz, "Scan rate (Hz) for stamping a folder without times.txt")
       ->check(finite_range(0, 1e6, true))->capture_default_str();
   cmd->add_option("--voxel-size", opt->odometry.voxel_size, "Local-map voxel (m)")->check(finite_range(0.05, 10.0))->capture_default_str();
@@ -144,7 +131,14 @@ void add(CLI::App& root) {
   cmd->add_option("--threads", opt->threads, "Worker threads (0: all cores)")->check(integer_range(0, bounds::kMaxThreads));
   // The tracking checks `slam` runs too (the library's own).
   add_option_checks(cmd, [opt] { check_as_usage([&] { opt->odometry.validate(); }); });
-  cmd->callback([opt] { run(*opt); });
+  auto io = std::make_shared<IoOptions>(cmd);
+  io->input("input", opt->input);
+  io->output("-o", opt->output);
+  io->output("--json", opt->json);
+  cmd->callback([opt, io] {
+    io->check();
+    run(*opt);
+  });
 }
 
 const RegisterCommand reg{add};

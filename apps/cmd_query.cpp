@@ -6,12 +6,13 @@
 
 #include "command_registry.hpp"
 #include "feature_options.hpp"
+#include "io_options.hpp"
 #include "option_checks.hpp"
 #include "slamvdb/core/csv.hpp"
 #include "slamvdb/core/point_text.hpp"
 #include "slamvdb/inference/simulated_encoders.hpp"
 #include "demo_outputs.hpp"
-#include "slamvdb/io/atomic_file.hpp"
+#include "slamvdb/core/output_file.hpp"
 #include "slamvdb/io/html_viewer.hpp"
 #include "slamvdb/io/image_io.hpp"
 #include "slamvdb/io/map_pictures.hpp"
@@ -168,7 +169,7 @@ void run_points(const Options& opt, const SemanticMap& map, const std::vector<Ve
     // characters), so the data are printed as they would be written.
     fmt::print("{}", csv.text());
   } else {
-    write_file_atomically(opt.output, csv.text());
+    write_output_file(opt.output, csv.text());
     fmt::print("{} points, {} in a semantic voxel: {}\n", answers.size(),
                std::count_if(answers.begin(), answers.end(), [](const PointQuery& a) { return a.found; }), opt.output);
   }
@@ -189,7 +190,6 @@ void run(const Options& opt) {
   if ((!opt.classes.empty() || !opt.not_classes.empty()) && opt.queries.empty())
     throw CLI::ValidationError("--class", "needs --queries QUERIES.json");
   const std::vector<Vec3d> points = spatial ? read_points(opt) : std::vector<Vec3d>{};
-  if (!opt.output.empty()) check_output_file(opt.output, "--output");
   const SemanticMap map = load_map(opt.map);
   if (spatial) return run_points(opt, map, points);
 
@@ -222,7 +222,7 @@ void write_results(const std::string& format, const std::string& output, const O
                fmt::format("{:.3f}", p.z()), fmt::format("{:.6f}", results[i].score),
                fmt::format("{}", results[i].count)});
     }
-    write_file_atomically(output, csv.text());
+    write_output_file(output, csv.text());
     fmt::print("CSV  {}: {} rows\n", output, results.size());
   } else if (format == ".png") {
     std::vector<ClassifiedCell> cells;
@@ -310,10 +310,26 @@ void add(CLI::App& root) {
     output_format(opt->output);
     if (!opt->ply.empty() && output_format(opt->ply) != ".ply") usage_error("--ply " + opt->ply + ": not a .ply name");
     if (!opt->png.empty() && output_format(opt->png) != ".png") usage_error("--png " + opt->png + ": not a .png name");
-    for (const std::string* o : {&opt->output, &opt->ply, &opt->png})
-      if (!o->empty()) check_output_file(*o, "--output");
   });
-  cmd->callback([opt] { run(*opt); });
+  auto io = std::make_shared<IoOptions>(cmd);
+  io->input("map", opt->map);
+  io->input("--queries", opt->queries);
+  io->input("--image", opt->images);
+  io->input("--vector", opt->vectors);
+  io->input("--not-vector", opt->not_vectors);
+  io->input("--text-model", opt->text_model);
+  io->input("--image-model", opt->image_model);
+  io->input("--at-csv", opt->at_csv);
+  const FilesOf files_of = [](const std::string& output) {
+    return output_format(output) == ".png" ? png_with_yaml(output) : std::vector<std::filesystem::path>{output};
+  };
+  io->output("-o", opt->output, files_of);
+  io->output("--ply", opt->ply);
+  io->output("--png", opt->png, files_of);
+  cmd->callback([opt, io] {
+    io->check();
+    run(*opt);
+  });
 }
 
 const RegisterCommand reg{add};

@@ -12,6 +12,7 @@
 #include "yaml_config.hpp"
 #include "feature_options.hpp"
 #include "map_option_checks.hpp"
+#include "io_options.hpp"
 #include "option_checks.hpp"
 #include "progress.hpp"
 #include "slamvdb/core/error.hpp"
@@ -151,13 +152,11 @@ void add(CLI::App& root) {
   add_colour_basis_option(cmd, opt->colour_basis);
   add_option_checks(cmd, [opt] {
     check_feature_options(opt->features);
-    check_output_file(opt->output, "-o");
-    if (!opt->poses_out.empty()) check_output_file(opt->poses_out, "--poses-out");
     opt->pipeline.map.semantic.dim = opt->features.dim;
     // The same checks as `map`: the feature maps, the voxel counts, the memory of one scan.
     const bool fp32 = opt->pipeline.map.semantic.precision == EmbeddingPrecision::kFloat32;
     check_map_options(opt->pipeline, MappingChoices{opt->features.features, opt->features.feature_size, "fp32",
-                                                    fp32 ? "fp32" : "fp16", "", opt->output, opt->max_memory_gb});
+                                                    fp32 ? "fp32" : "fp16", "", opt->max_memory_gb});
     check_colour_basis_option(opt->colour_basis, opt->features.dim);
     check_as_usage([&] {
       opt->tracking.odometry.validate();  // the tracking checks `odometry` runs too
@@ -165,7 +164,16 @@ void add(CLI::App& root) {
       opt->pipeline.map.validate();
     });
   });
-  cmd->callback([opt, cmd] { run(*opt, effective_config(*cmd)); });
+  auto io = std::make_shared<IoOptions>(cmd);
+  io->input("dataset", opt->dataset);
+  io->input("--colour-basis", opt->colour_basis.file);
+  add_feature_inputs(*io, opt->features);
+  io->output("-o", opt->output, {}, /*lock=*/true);  // one run at a time
+  io->output("--poses-out", opt->poses_out);
+  cmd->callback([opt, cmd, io] {
+    io->check();
+    run(*opt, effective_config(*cmd));
+  });
 }
 
 const RegisterCommand reg{add};

@@ -11,6 +11,7 @@
 #include <regex>
 
 #include "command_registry.hpp"
+#include "io_options.hpp"
 #include "option_checks.hpp"
 #include "progress.hpp"
 #include "slamvdb/core/error.hpp"
@@ -125,7 +126,12 @@ void add(CLI::App& root) {
                 "Write even if the estimated size exceeds the free space (the estimate can be wrong on compressing "
                 "file systems; a full disk still fails cleanly, leaving an incomplete sequence)");
   add_option_checks(cmd, [opt] { check_synth_options(*opt); });
-  cmd->callback([opt] { run(*opt); });
+  auto io = std::make_shared<IoOptions>(cmd);
+  io->output_folder("out_dir", opt->out, {}, /*lock=*/true);  // filled for minutes: one run at a time
+  cmd->callback([opt, io] {
+    io->check();
+    run(*opt);
+  });
 }
 
 const RegisterCommand reg{add};

@@ -8,6 +8,7 @@
 
 #include "command_registry.hpp"
 #include "feature_options.hpp"
+#include "io_options.hpp"
 #include "progress.hpp"
 #include "slamvdb/core/error.hpp"
 #include "slamvdb/io/sequence_reader.hpp"
@@ -32,7 +33,6 @@ std::string pct(const std::optional<double>& v) { return v ? fmt::format("{:.2f}
 void run(Options opt) {
   // Everything that can be checked without reading images, before any work.
   check_feature_options(opt.features);
-  check_output_file(opt.output, "--output");
   opt.train.sampling = opt.sampling == "balanced" ? PixelSampling::kClassBalanced : PixelSampling::kUniform;
   opt.train.init = opt.init == "text" ? QueryInit::kText : opt.init == "mean" ? QueryInit::kClassMean : QueryInit::kAuto;
   try {
@@ -153,7 +153,15 @@ void add(CLI::App& root) {
       ->capture_default_str()
       ->check(kPositive);
   add_feature_options(cmd, opt->features, true);
-  cmd->callback([opt] { run(*opt); });
+  auto io = std::make_shared<IoOptions>(cmd);
+  io->input("dataset", opt->dataset);
+  io->input("--ontology", opt->ontology);
+  add_feature_inputs(*io, opt->features);
+  io->output("-o", opt->output);
+  cmd->callback([opt, io] {
+    io->check();
+    run(*opt);
+  });
 #else
   root.add_subcommand("train-queries", "Unavailable: this slamvdb was built without libtorch (SLAMVDB_WITH_TORCH=OFF)")
       ->callback([] { throw Error("train-queries needs libtorch: rebuild with -DSLAMVDB_WITH_TORCH=ON"); });

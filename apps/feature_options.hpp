@@ -6,8 +6,6 @@
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
-#include <unistd.h>
-
 #include <charconv>
 #include <filesystem>
 #include <memory>
@@ -16,6 +14,7 @@
 #include <vector>
 
 #include "option_checks.hpp"
+#include "io_options.hpp"
 #include "slamvdb/core/error.hpp"
 #include "slamvdb/core/text_escape.hpp"
 #include "slamvdb/inference/simulated_encoders.hpp"
@@ -196,18 +195,10 @@ inline std::vector<ImageRecord> select_labelled_images(const Sequence& seq, cons
   return labelled;
 }
 
-// Usage error (exit 2) unless `file` can be created: its directory exists and is writable.
-inline void check_output_file(const std::filesystem::path& file, const char* option) {
-  namespace fs = std::filesystem;
-  const fs::path dir = file.has_parent_path() ? file.parent_path() : fs::path(".");
-  if (!fs::is_directory(dir))
-    throw CLI::ValidationError(option, fmt::format("directory {} does not exist", dir.string()));
-  if (fs::is_directory(file)) throw CLI::ValidationError(option, fmt::format("{} is a directory", file.string()));
-  const fs::path probe = dir / fmt::format(".slamvdb-write-test-{}", ::getpid());
-  std::FILE* f = std::fopen(probe.c_str(), "w");
-  if (!f) throw CLI::ValidationError(option, fmt::format("cannot write into {}", dir.string()));
-  std::fclose(f);
-  fs::remove(probe);
+// The model files of the feature options, as inputs of the command (io_options.hpp).
+inline void add_feature_inputs(IoOptions& io, const FeatureOptions& o) {
+  io.input("--model", o.model);
+  io.input("--text-model", o.text_model);
 }
 
 }  // namespace slamvdb::cli

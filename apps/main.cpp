@@ -5,7 +5,9 @@
 
 #include <CLI/CLI.hpp>
 #include <algorithm>
+#include <cerrno>
 #include <cstdio>
+#include <cstring>
 #include <exception>
 #include <new>
 #include <string>
@@ -67,6 +69,13 @@ int main(int argc, char** argv) {
   } catch (const std::exception& e) {
     // Not a usage error either (e.g. a file system failure): a runtime error, exit code 1.
     spdlog::error("{}", slamvdb::escape_control(e.what()));
+    return 1;
+  }
+  // Standard output is an output too (`query --at` prints its CSV there): a full disk or failing
+  // device behind it is an error, not a silent exit 0 (core/output_file.hpp has the same rule).
+  if (std::fflush(stdout) != 0 || std::ferror(stdout)) {
+    // On standard error: spdlog's default logger writes to standard output, which just failed.
+    std::fprintf(stderr, "error: cannot write standard output: %s\n", std::strerror(errno));
     return 1;
   }
   return 0;

@@ -43,7 +43,6 @@ struct MappingChoices {
   std::string sim_feature_precision = "fp32";  // the simulated encoder's output values (their size bounds a feature map)
   std::string precision = "fp16";              // embeddings at rest
   std::string distortion;
-  std::string output;
   double max_memory_gb = 0;  // 0: the memory available on this machine
 };
 
@@ -71,13 +70,6 @@ inline void check_map_options(const PipelineOptions& p, const MappingChoices& c)
   if (c.features == "simulated")
     check_simulated_feature_size(c.feature_size, p.map.semantic.dim, c.sim_feature_precision == "fp16" ? 2 : 4);
   check_scan_memory(occ, c.features == "none" ? 0 : p.map.semantic.dim, c.max_memory_gb);
-  // The output location is checked now, not after the whole replay.
-  const std::filesystem::path dir = std::filesystem::absolute(c.output).parent_path();
-  std::error_code ec;
-  if (!std::filesystem::is_directory(dir, ec))
-    throw Error(fmt::format("-o {}: directory {} does not exist", c.output, dir.string()));
-  if (::access(dir.c_str(), W_OK) != 0)
-    throw Error(fmt::format("-o {}: directory {} is not writable", c.output, dir.string()));
   if (occ.voxel_size < 0.1) {
     const int value_bytes = c.precision == "fp32" ? 4 : 2;
     spdlog::warn("--voxel-size {} m: expect roughly {:.0f} MB of map memory per 100 m driven (about 50 MB at 0.25 m; "

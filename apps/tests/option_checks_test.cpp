@@ -44,7 +44,6 @@ TEST(OptionChecks, DistortionNeedsFiveFiniteNumbers) {
 TEST(OptionChecks, MapOptionCombinationsAreBounded) {
   PipelineOptions p;
   MappingChoices c;
-  c.output = "/tmp/map.svdb";
   c.max_memory_gb = 1e6;  // the machine's memory is another test's subject
   const auto run = [&](const std::string& feature_size = "192x128", const std::string& sim_precision = "fp32") {
     c.feature_size = feature_size;
