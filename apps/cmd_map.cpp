@@ -307,13 +307,15 @@ void add(CLI::App& root) {
                 "mapping restarts after its last finished submap, with the same options");
   cmd->add_flag("--no-checkpoints", opt->no_checkpoints,
                 "Write the map file once at the end (atomically) instead of submap by submap while mapping");
+  opt->pipeline.unload_radius = kDefaultUnloadRadius;
   cmd->add_option("--unload-radius", opt->pipeline.unload_radius,
                   "Finished submaps whose anchor is farther than this (m) from the vehicle leave memory (they are in "
-                  "the map file) and come back when it returns (0: keep all in memory)")
+                  "the map file) and come back when it returns, so memory stays bounded on long drives (0: keep all "
+                  "in memory; --no-checkpoints also keeps all)")
       ->capture_default_str()
       ->check(finite_range(0, 1e7));
   add_colour_basis_option(cmd, opt->colour_basis);
-  cmd->parse_complete_callback([opt] {
+  cmd->parse_complete_callback([opt, cmd] {
     check_map_options(opt->pipeline, opt->features, opt->feature_size, opt->sim_feature_precision, opt->precision,
                       opt->distortion, opt->output);
     check_colour_basis_option(opt->colour_basis, opt->pipeline.map.semantic.dim);
@@ -323,6 +325,10 @@ void add(CLI::App& root) {
       usage_error(fmt::format("--resume: there is no map file {} to continue", opt->output));
     if (opt->odometry && !opt->poses.empty()) usage_error("--odometry and --poses are two pose sources: give one");
     if (!opt->tracking.loop_closure && !opt->odometry) usage_error("--no-loop-closure goes with --odometry");
+    if (opt->no_checkpoints && cmd->count("--unload-radius") == 0) {  // no file to unload to: keep all
+      opt->pipeline.unload_radius = 0;
+      cmd->get_option("--unload-radius")->default_str("0");  // as the map records its options
+    }
     if (opt->pipeline.unload_radius > 0 && opt->no_checkpoints)
       usage_error("--unload-radius needs the map file written while mapping: it cannot go with --no-checkpoints");
   });

@@ -19,6 +19,7 @@
 #include "slamvdb/io/trajectory_io.hpp"
 #include "slamvdb/localization/trajectory_metrics.hpp"
 #include "slamvdb/pipeline/slam_mapping.hpp"
+#include "slamvdb/store/map_file_writer.hpp"
 #include "slamvdb/store/map_store.hpp"
 
 namespace slamvdb::cli::cmd_slam {
@@ -58,6 +59,13 @@ void run(Options opt, const std::string& config) {
   // Odometry, loop closure and mapping in one pass: each scan's pose goes to the mapper as soon as
   // the scan is registered; accepted loops move (and merge) the submaps while mapping goes on.
   SlamMappingOptions slam_options{opt.pipeline, opt.tracking, MergeOptions{opt.min_merge_overlap}};
+  // The map file grows submap by submap while mapping, as in `map`, so that finished submaps far
+  // from the vehicle can leave memory (--unload-radius); corrections and merges are kept in step.
+  MapInfo start_info;
+  start_info.model_id = source ? source->model_id() : "";
+  start_info.source = seq.root.string();
+  const auto writer = MapFileWriter::create(opt.output, opt.pipeline.map, start_info);
+  slam_options.pipeline.store = writer.get();
   std::optional<ProgressBar> bar;
   SlamMappingResult run = map_with_own_poses(seq, source.get(), slam_options,
                                              [&](std::size_t done, std::size_t total, const TrackingResult& r) {
@@ -81,7 +89,9 @@ void run(Options opt, const std::string& config) {
   info.config = config;
   map.set_info(info);
   record_colour_basis(map, opt.colour_basis);
-  save_map(opt.output, map);
+  // With submaps unloaded, memory holds only part of the map: its size is then not recorded.
+  writer->finish(map.info(), run.report.submaps_unloaded ? 0 : map.memory_bytes());
+  const MapFileSummary saved = read_map_summary(opt.output);
   if (!opt.poses_out.empty()) write_trajectory(opt.poses_out, tracked.stamps, corrected_poses, opt.format);
 
   fmt::print("slam of {}: {} scans, {:.1f} m, tracking {:.1f} scans/s{}\n", opt.dataset, tracked.stamps.size(),
@@ -106,8 +116,8 @@ void run(Options opt, const std::string& config) {
       fmt::print("  against the dataset's poses: ATE rmse {:.3f} m with odometry only, {:.3f} m after loop closure\n",
                  before->rmse, after->rmse);
   }
-  fmt::print("map saved to {}: {} submaps, {} semantic cells{}\n", opt.output, map.num_submaps(),
-             map.num_index_cells(), opt.poses_out.empty() ? "" : "; poses written to " + opt.poses_out);
+  fmt::print("map saved to {}: {} submaps, {} semantic entries{}\n", opt.output, saved.submaps.size(),
+             saved.semantic_voxels, opt.poses_out.empty() ? "" : "; poses written to " + opt.poses_out);
 }
 
 void add(CLI::App& root) {
@@ -145,6 +155,12 @@ void add(CLI::App& root) {
                   "Merge two submaps joined by a loop when this share of occupied voxels agrees")
       ->capture_default_str()
       ->check(finite_range(0, 1));
+  opt->pipeline.unload_radius = kDefaultUnloadRadius;
+  cmd->add_option("--unload-radius", opt->pipeline.unload_radius,
+                  "Finished submaps whose anchor is farther than this (m) from the vehicle leave memory (they are in "
+                  "the map file, which grows while mapping) and come back when needed (0: keep all in memory)")
+      ->capture_default_str()
+      ->check(finite_range(0, 1e7));
   add_colour_basis_option(cmd, opt->colour_basis);
   cmd->parse_complete_callback([opt] {
     check_feature_options(opt->features);
