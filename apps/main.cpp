@@ -10,6 +10,7 @@
 #include <new>
 #include <string>
 
+#include "command_overview.hpp"
 #include "command_registry.hpp"
 #include "progress.hpp"
 #include "slamvdb/core/error.hpp"
@@ -34,6 +35,7 @@ int main(int argc, char** argv) {
 
   CLI::App app{"slamvdb: open-vocabulary semantic voxel maps from LiDAR and camera"};
   app.require_subcommand(1);
+  app.formatter(std::make_shared<slamvdb::cli::CommandOverviewFormatter>());  // commands in workflow order
   app.fallthrough();  // --quiet / --verbose are accepted after the command too
   app.set_help_all_flag("--help-all", "Show help for every subcommand");
   app.set_version_flag("--version", std::string("slamvdb ") + SLAMVDB_VERSION + " (" + SLAMVDB_GIT_COMMIT + ")");
