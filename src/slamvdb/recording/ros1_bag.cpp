@@ -102,6 +102,7 @@ void Ros1BagReader::add_channel(const ConnectionRecord& connection) {
   channel.topic = connection.topic;
   channel.type = connection.type;
   channel.serialization = Serialization::kRos1;
+  channel.encoding = "ros1";
   channel.definition = connection.message_definition;
   channel_of_connection_[connection.id] = channels_.size();
   channels_.push_back(std::move(channel));

@@ -22,6 +22,8 @@ WireReader::WireReader(std::span<const std::uint8_t> bytes, Serialization serial
     : bytes_(bytes), serialization_(serialization), type_(type) {
   using namespace wire_detail;
   if (serialization_ == Serialization::kRos1) return;
+  if (serialization_ == Serialization::kOther)
+    fail("message", "its encoding is neither ROS 1 serialization nor CDR (a json or protobuf channel): no ROS decoder reads it");
   if (bytes_.size() < 4) fail("CDR encapsulation header", fmt::format("the message has only {} bytes", bytes_.size()));
   const std::uint8_t kind = bytes_[1];
   switch (kind) {

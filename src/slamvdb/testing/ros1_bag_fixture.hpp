@@ -18,6 +18,7 @@
 #include <vector>
 
 #include "slamvdb/recording/recording.hpp"
+#include "slamvdb/testing/recording_fixtures.hpp"  // ReadMessage, read_all
 #include "slamvdb/testing/run_command.hpp"
 
 namespace slamvdb::testing {
@@ -79,27 +80,6 @@ inline WrittenBag write_ros1_bag(const std::filesystem::path& dir, const std::st
     if (m["in_finished_chunk"].get<bool>()) bag.in_finished_chunks = bag.messages.size();
   }
   return bag;
-}
-
-// What a reader gave for one message.
-struct ReadMessage {
-  std::string topic, type;
-  std::int64_t log_time_ns = 0;
-  std::size_t size = 0;
-  std::uint32_t crc32 = 0;
-  std::uint64_t index = 0;
-};
-
-inline std::uint32_t crc32_of(std::span<const std::uint8_t> bytes) {
-  return static_cast<std::uint32_t>(::crc32(0, bytes.data(), static_cast<uInt>(bytes.size())));
-}
-
-inline std::vector<ReadMessage> read_all(recording::RecordingReader& reader) {
-  std::vector<ReadMessage> out;
-  recording::Message m;
-  while (reader.next(m))
-    out.push_back({m.channel->topic, m.channel->type, m.log_time_ns, m.data.size(), crc32_of(m.data), m.index});
-  return out;
 }
 
 // Checks that `read` is `expected` (topic, type, log time, bytes), message by message.
