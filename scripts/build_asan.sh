@@ -32,6 +32,8 @@ if [ ! -f $tree/CMakeCache.txt ]; then
     -DCMAKE_UNITY_BUILD=${SLAMVDB_UNITY:-ON} -DCMAKE_UNITY_BUILD_BATCH_SIZE=16 \
     -DSLAMVDB_SANITIZE=address,undefined -DSLAMVDB_WITH_TORCH=OFF -DSLAMVDB_PYTHON_MODULE=OFF \
     -DSLAMVDB_WERROR="${SLAMVDB_WERROR:-OFF}" "${launcher[@]}" > /dev/null
+elif [ -n "${SLAMVDB_WERROR:-}" ]; then
+  cmake $tree -DSLAMVDB_WERROR="$SLAMVDB_WERROR" > /dev/null  # a tree configured before: as asked now
 fi
 targets=("$@")
 [ ${#targets[@]} -gt 0 ] || targets=("${default_targets[@]}")
