@@ -11,14 +11,14 @@
 
 namespace slamvdb::cli {
 
-struct CommandLine {
+struct CommandOverviewLine {
   const char* group;
   const char* name;
   const char* line;
 };
 
-inline const std::vector<CommandLine>& command_overview() {
-  static const std::vector<CommandLine> table = {
+inline const std::vector<CommandOverviewLine>& command_overview() {
+  static const std::vector<CommandOverviewLine> table = {
       {"Make data", "synth", "Write a SIMULATED sequence in the RELLIS-3D layout"},
       {"Make data", "demo", "The whole job on a SIMULATED drive, with pictures"},
       {"Map", "map", "Map a dataset on its poses into a map file (.svdb)"},
@@ -55,7 +55,7 @@ class CommandOverviewFormatter : public CLI::Formatter {
       if (mode == CLI::AppFormatMode::All) out << sub->help(sub->get_name(), CLI::AppFormatMode::Sub) << "\n";
       else CLI::detail::format_help(out, sub->get_name(), line, kNameWidth);
     };
-    for (const CommandLine& c : command_overview()) {
+    for (const CommandOverviewLine& c : command_overview()) {
       const auto it = std::find_if(rest.begin(), rest.end(), [&](const CLI::App* s) { return s->get_name() == c.name; });
       if (it == rest.end()) continue;
       put(c.group, *it, c.line);
