@@ -5,6 +5,7 @@
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
+#include <filesystem>
 #include <optional>
 
 #include "colour_basis_option.hpp"
@@ -16,6 +17,7 @@
 #include "option_checks.hpp"
 #include "progress.hpp"
 #include "slamvdb/core/error.hpp"
+#include "slamvdb/core/output_file.hpp"
 #include "slamvdb/core/text_escape.hpp"
 #include "slamvdb/io/sequence_reader.hpp"
 #include "slamvdb/io/trajectory_io.hpp"
@@ -67,15 +69,27 @@ void run(Options opt, const std::string& config) {
   MapInfo start_info;
   start_info.model_id = source ? source->model_id() : "";
   start_info.source = seq.root.string();
-  const auto writer = MapFileWriter::create(opt.output, opt.pipeline.map, start_info);
+  const OutputTarget target = resolve_output(opt.output);
+  auto writer = MapFileWriter::create(opt.output, opt.pipeline.map, start_info);
   slam_options.pipeline.store = writer.get();
   std::optional<ProgressBar> bar;
-  SlamMappingResult run = map_with_own_poses(seq, source.get(), slam_options,
-                                             [&](std::size_t done, std::size_t total, const TrackingResult& r) {
+  auto progress = [&](std::size_t done, std::size_t total, const TrackingResult& r) {
     if (!bar) bar.emplace("slam", total, "scans");
     bar->update(done, fmt::format("{:.0f} m{}", r.distance,
                                   r.loop_closer ? fmt::format(", {} loops", r.loop_closer->loops().size()) : ""));
-  });
+  };
+  SlamMappingResult run = [&] {
+    try {
+      return map_with_own_poses(seq, source.get(), slam_options, progress);
+    } catch (...) {
+      // slam cannot resume a run, so a failed one leaves no partial map file (a device or FIFO
+      // gets nothing: the file grew in a temporary).
+      writer.reset();
+      std::error_code ignored;
+      if (!target.is_stream()) std::filesystem::remove(target.resolved, ignored);
+      throw;
+    }
+  }();
   if (bar) bar->finish();
   const TrackingResult& tracked = run.tracked;
   for (const auto& line : tracked.problems) spdlog::warn("{}", escape_control(line));

@@ -18,7 +18,9 @@ void Mapper::after_scan(const Pose& T_world_lidar, std::optional<int> finished_i
   }
   if (!store_) return;
   std::lock_guard store_lock(store_mutex_);
-  if (finished_id) store_->save_finished(map_, *finished_id);
+  // A loop closer may have merged the just-finished submap into another before this (its merge
+  // wrote the target to the store, with this one's voxels): then there is nothing left to save.
+  if (finished_id && map_.submap_info(*finished_id)) store_->save_finished(map_, *finished_id);
   if (options_.unload_radius <= 0) return;
   const Vec3d robot = T_world_lidar.translation();
   auto distance = [&](const SubmapInfo& s) { return (s.T_world_submap.translation() - robot).norm(); };
