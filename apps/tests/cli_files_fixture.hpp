@@ -43,8 +43,9 @@ class CliFiles : public ::testing::Test {
     // vectors in the map's embedding space serves every command that reads one.
     QuerySet set;
     set.model_id = read_map_summary(map()).info.model_id;
-    set.names = {"grass", "tree", "bush", "dirt", "sky"};
-    set.vectors = QueryMatrix::Identity(5, 16);
+    set.names = {"smooth", "rough", "bumpy", "obstacle", "active", "void"};  // the default ontology's
+    set.vectors = QueryMatrix::Identity(6, 16);
+    set.void_classes = {5};
     save_query_set(queries(), set);
 #endif
   }
