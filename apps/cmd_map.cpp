@@ -12,6 +12,7 @@
 #include "map_option_checks.hpp"
 #include "option_checks.hpp"
 #include "progress.hpp"
+#include "sim_encoder_options.hpp"
 #include "slamvdb/core/error.hpp"
 #include "slamvdb/core/text_escape.hpp"
 #include "slamvdb/inference/simulated_encoders.hpp"
@@ -38,12 +39,14 @@ struct Options {
   int threads = -1;
   PipelineOptions pipeline;
   SimulatedEncoderConfig sim;
+  SimEncoderOptions sim_encoder;
   bool realtime = false, resume = false, no_checkpoints = false;
   std::string poses, pose_format = "auto";
   bool odometry = false;
   TrackingOptions tracking;
   double queue_mb = 1024;
   std::string occlusion = "active";
+  std::string fusion_weighting = "quality";
   double max_image_pixels = static_cast<double>(kDefaultMaxImagePixels);
   ColourBasisChoice colour_basis;
 };
@@ -78,7 +81,7 @@ std::unique_ptr<FeatureSource> make_feature_source(const Options& opt, const Seq
     throw Error(fmt::format("--features precomputed: no features/<image>.npy files in {}", seq.root.string()));
   }
   if (opt.features == "simulated") {
-    SimulatedEncoderConfig sim = opt.sim;
+    SimulatedEncoderConfig sim = opt.sim_encoder.config(opt.sim);
     static const std::regex kSize(R"((\d{1,5})[xX](\d{1,5}))");
     std::smatch m;
     if (!std::regex_match(opt.feature_size, m, kSize))
@@ -87,7 +90,8 @@ std::unique_ptr<FeatureSource> make_feature_source(const Options& opt, const Seq
     sim.height = std::stoi(m[2]);
     sim.dim = opt.pipeline.map.semantic.dim;
     sim.output_precision = precision_from_string(opt.sim_feature_precision);
-    spdlog::warn("features are SIMULATED from the 2D label images (no network): {}", simulated_model_id(sim));
+    spdlog::warn("features are SIMULATED from the 2D label images (no network): {}; encoder {}", simulated_model_id(sim),
+                 sim.describe());
     return std::make_unique<EncoderFeatureSource>(std::make_unique<SimulatedDenseEncoder>(sim),
                                                   EncoderFeatureSource::Input::kLabels);
   }
@@ -103,6 +107,7 @@ void check_resumable(const SemanticMap& map, const MapParams& p, const std::stri
       {"--voxel-size", f.occupancy.voxel_size == p.occupancy.voxel_size},
       {"--dim", f.semantic.dim == p.semantic.dim},
       {"--precision", f.semantic.precision == p.semantic.precision},
+      {"--fusion-weighting single-view", f.semantic.single_view == p.semantic.single_view},
       {"--submap-length", f.submap_length == p.submap_length},
       {"--min-range", f.occupancy.min_point_range == p.occupancy.min_point_range},
       {"--max-range", f.occupancy.max_point_range == p.occupancy.max_point_range},
@@ -125,6 +130,8 @@ void check_resumable(const SemanticMap& map, const MapParams& p, const std::stri
 
 void run(Options opt, const std::string& config) {
   opt.pipeline.fusion.occlusion_from_other_submaps = opt.occlusion == "all";
+  opt.pipeline.fusion.weighting = fusion_weighting_from_string(opt.fusion_weighting);
+  opt.pipeline.map.semantic.single_view = opt.pipeline.fusion.weighting == FusionWeighting::kSingleView;
   opt.pipeline.map.semantic.precision = precision_from_string(opt.precision);
   opt.pipeline.map.validate();
   ReadOptions read_options;
@@ -162,12 +169,17 @@ void run(Options opt, const std::string& config) {
   MapInfo info;
   info.model_id = source ? source->model_id() : "";
   info.source = seq.root.string();
+  info.fusion = std::string(to_string(opt.pipeline.fusion.weighting));
+  info.features = source ? source->description() : "";
   info.config = config;
   std::optional<SemanticMap> start;
   std::unique_ptr<MapFileWriter> writer;
   if (opt.resume) {
     start.emplace(load_map(opt.output));
     check_resumable(*start, opt.pipeline.map, info.model_id, seq, opt.output);
+    if (start->info().fusion != info.fusion)
+      throw Error(fmt::format("--resume: {} was fused with the '{}' rule, this run's --fusion-weighting is '{}'", opt.output,
+                              escape_control(start->info().fusion), info.fusion));
     double end = -1e300;
     for (const SubmapInfo& s : start->submaps()) end = std::max(end, s.time_range.end);
     fmt::print("resuming {}: {} finished submaps, mapped up to {:.3f} s\n", opt.output, start->num_submaps(),
@@ -237,6 +249,13 @@ void add(CLI::App& root) {
                   "finished submaps near the camera)")
       ->capture_default_str()
       ->check(CLI::IsMember({"active", "all"}));
+  cmd->add_option("--fusion-weighting", opt->fusion_weighting,
+                  "How the views of a voxel are combined: 'quality' weights each view by its range, incidence angle "
+                  "and distance to the image border and leaves out pixels near depth edges; 'paper' is the paper's "
+                  "plain running mean (Eq. 6.1); 'single-view' is a baseline that keeps only each voxel's nearest "
+                  "view. Recorded in the map")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"quality", "paper", "single-view"}));
   cmd->add_option("--dim", m.semantic.dim, "Embedding dimension")
       ->capture_default_str()
       ->check(integer_range(1, bounds::kMaxDim));
@@ -267,13 +286,7 @@ void add(CLI::App& root) {
                   "files hand over their own precision")
       ->capture_default_str()
       ->check(CLI::IsMember({"fp32", "fp16"}));
-  cmd->add_option("--sim-confusion", opt->sim.confusion_rate, "Simulated per-view confusion rate")
-      ->capture_default_str()
-      ->check(finite_range(0, 1));
-  cmd->add_option("--sim-related-confusion", opt->sim.related_confusion,
-                  "Simulated share of confusions that pick a class of the same coarse class")
-      ->capture_default_str()
-      ->check(finite_range(0, 1));
+  opt->sim_encoder.add_to(cmd);
   cmd->add_option("--queue", opt->pipeline.queue_capacity,
                   "Most scans and images (with their feature maps) waiting in the mapper at once")
       ->capture_default_str()

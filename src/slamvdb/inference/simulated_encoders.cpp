@@ -12,6 +12,7 @@
 
 #include "slamvdb/core/error.hpp"
 #include "slamvdb/core/ontology.hpp"
+#include "slamvdb/inference/simulated_failures.hpp"
 
 namespace slamvdb {
 namespace {
@@ -73,6 +74,88 @@ void validate(const SimulatedEncoderConfig& c) {
   if (!(c.blur >= 0.f) || !std::isfinite(c.blur)) fail(fmt::format("blur must be >= 0, got {}", c.blur));
   if (!(c.text_gap >= 0.f) || !std::isfinite(c.text_gap))
     fail(fmt::format("text_gap must be >= 0, got {}", c.text_gap));
+  if (c.coarse_factor < 1 || c.coarse_factor > 64)
+    fail(fmt::format("coarse_factor must be in [1, 64], got {}", c.coarse_factor));
+  const std::pair<const char*, float> probabilities[] = {
+      {"base_error", c.base_error},         {"range_error", c.range_error},       {"grazing_error", c.grazing_error},
+      {"border_error", c.border_error},     {"exposure_error", c.exposure_error}, {"exposure_area", c.exposure_area},
+      {"persistence", c.persistence},       {"lookalike_share", c.lookalike_share}};
+  for (const auto& [name, v] : probabilities)
+    if (!(v >= 0.f && v <= 1.f)) fail(fmt::format("{} must be in [0, 1], got {}", name, v));
+  if (!(c.range_near_m >= 0.f && c.range_far_m >= c.range_near_m && std::isfinite(c.range_far_m)))
+    fail(fmt::format("range_near_m {} and range_far_m {} must satisfy 0 <= near <= far", c.range_near_m,
+                     c.range_far_m));
+  if (c.border_px < 0 || c.border_px > 4096) fail(fmt::format("border_px must be in [0, 4096], got {}", c.border_px));
+  if (!(c.error_cell_px >= 1.f && c.error_cell_px <= 4096.f))
+    fail(fmt::format("error_cell_px must be in [1, 4096], got {}", c.error_cell_px));
+  if (!(c.persistence_period_s > 0.f) || !std::isfinite(c.persistence_period_s))
+    fail(fmt::format("persistence_period_s must be > 0, got {}", c.persistence_period_s));
+}
+
+SimulatedEncoderConfig SimulatedEncoderConfig::clean() {
+  SimulatedEncoderConfig c;
+  c.confusion_rate = 0.15f;
+  c.blur = 1.5f;
+  c.coarse_factor = 1;
+  c.base_error = c.range_error = c.grazing_error = c.border_error = c.exposure_error = 0.f;
+  c.persistence = 0.f;
+  c.lookalike_share = 0.f;
+  return c;
+}
+
+SimulatedEncoderConfig simulated_encoder_preset(std::string_view name, const SimulatedEncoderConfig& base) {
+  SimulatedEncoderConfig preset;
+  if (name == "clean") preset = SimulatedEncoderConfig::clean();
+  else if (name != "realistic")
+    throw Error(fmt::format("unknown simulated encoder '{}' (expected clean or realistic)", name));
+  preset.dim = base.dim, preset.height = base.height, preset.width = base.width, preset.seed = base.seed;
+  preset.related_cosine = base.related_cosine, preset.text_gap = base.text_gap;
+  preset.output_precision = base.output_precision;
+  return preset;
+}
+
+std::string SimulatedEncoderConfig::describe() const {
+  const SimulatedEncoderConfig clean_config = simulated_encoder_preset("clean", *this);
+  const SimulatedEncoderConfig realistic_config = simulated_encoder_preset("realistic", *this);
+  const char* name = *this == clean_config ? "clean" : *this == realistic_config ? "realistic" : "custom";
+  return fmt::format(
+      "{} (SIMULATED): low resolution x{}; errors base {:.2f}, range {:.2f} ({:g}..{:g} m), grazing {:.2f}, border "
+      "{:.2f} ({} px), exposure {:.2f} ({:.0f}% of a view); persistence {:.2f}; look-alikes {:.2f}; per-view blob "
+      "swaps {:.2f}; noise {:.2f}; blur {:.2f} px",
+      name, coarse_factor, base_error, range_error, range_near_m, range_far_m, grazing_error, border_error, border_px,
+      exposure_error, 100 * exposure_area, persistence, lookalike_share, confusion_rate, noise_sigma, blur);
+}
+
+const std::vector<uint16_t>& simulated_lookalikes(uint16_t id) {
+  // Each class's look-alikes in OTHER coarse classes, from what dense vision-language features
+  // confuse on off-road images: terrain of one texture family (dirt, mud, rubble, concrete,
+  // asphalt), vegetation (grass, bush, tree), thin structures against trees, people and vehicles
+  // against clutter. The paper's own maps show mud ("bumpy") "classified as a mix of smooth and
+  // rough terrain" (section 6.3.2), which is the entry for mud.
+  static const std::vector<std::pair<uint16_t, std::vector<uint16_t>>> table = {
+      {1, {33, 23, 19}},   // dirt -> mud, concrete, bush
+      {3, {19, 33}},       // grass -> bush, mud
+      {4, {3, 1}},         // tree -> grass, dirt (trunks, crowns against the ground)
+      {5, {1, 23}},        // pole -> dirt, concrete
+      {6, {31, 33, 10}},   // water -> puddle, mud, asphalt
+      {8, {12, 19}},       // vehicle -> building, bush
+      {9, {1, 17}},        // object -> dirt, person
+      {10, {1, 33}},       // asphalt -> dirt, mud
+      {12, {23, 8}},       // building -> concrete, vehicle
+      {15, {1, 33}},       // log -> dirt, mud
+      {17, {19, 4}},       // person -> bush, tree
+      {18, {3, 1}},        // fence -> grass, dirt
+      {19, {3, 1}},        // bush -> grass, dirt
+      {23, {1, 34}},       // concrete -> dirt, rubble
+      {27, {23, 8}},       // barrier -> concrete, vehicle
+      {31, {10, 1}},       // puddle -> asphalt, dirt
+      {33, {1, 23, 3}},    // mud -> dirt, concrete, grass
+      {34, {1, 23}},       // rubble -> dirt, concrete
+  };
+  static const std::vector<uint16_t> none;
+  for (const auto& [fine, alikes] : table)
+    if (fine == id) return alikes;
+  return none;
 }
 
 PrototypeMatrix simulated_class_prototypes(const SimulatedEncoderConfig& config) {
@@ -99,12 +182,30 @@ SimulatedDenseEncoder::SimulatedDenseEncoder(SimulatedEncoderConfig config)
   class_row_.fill(-1);
   const auto& classes = rellis_classes();
   for (std::size_t i = 0; i < classes.size(); ++i) class_row_[classes[i].id] = static_cast<int>(i);
+  const int K = static_cast<int>(classes.size());
+  related_.resize(K);
+  lookalike_.resize(K);
+  for (int k = 0; k < K; ++k) {
+    for (int j = 0; j < K; ++j)
+      if (j != k && classes[j].coarse == classes[k].coarse) related_[k].push_back(j);
+    for (const uint16_t id : simulated_lookalikes(classes[k].id)) lookalike_[k].push_back(class_row_[id]);
+  }
 
   // Drawing a Gaussian per value per frame would dominate the cost; pixels pick rows of a bank.
   const float component_sigma = 1.f / std::sqrt(static_cast<float>(config_.dim));
   noise_bank_.resize(static_cast<std::size_t>(kNoiseBankSize) * config_.dim);
   Rng rng{mix(config_.seed, 0x401538A4u)};
   for (float& v : noise_bank_) v = component_sigma * rng.gaussian();
+}
+
+int SimulatedDenseEncoder::wrong_class(int k, uint64_t key) const {
+  Rng rng{key ^ static_cast<uint64_t>(k) * 0x9E3779B97F4A7C15ull};
+  const int K = static_cast<int>(prototypes_.rows());
+  if (!lookalike_[k].empty() && rng.uniform() < config_.lookalike_share)
+    return lookalike_[k][rng.next() % lookalike_[k].size()];
+  if (!related_[k].empty() && rng.uniform() < config_.related_confusion) return related_[k][rng.next() % related_[k].size()];
+  int to = static_cast<int>(rng.next() % (K - 1));
+  return to + (to >= k);  // any class but k
 }
 
 FeatureMap SimulatedDenseEncoder::encode(const ImageFrame& frame) {
@@ -127,52 +228,70 @@ void SimulatedDenseEncoder::encode_into(const ImageFrame& frame, FeatureMap& out
                                 x, y, ids_of_classes()));
   }
 
-  const int H = config_.height, W = config_.width, D = config_.dim, K = static_cast<int>(prototypes_.rows());
+  const int H = config_.height, W = config_.width, K = static_cast<int>(prototypes_.rows());
   cv::Mat labels;
   cv::resize(frame.labels, labels, cv::Size(W, H), 0, 0, cv::INTER_NEAREST);
-
-  // Confusion: cells of a grid whose offset changes per view; in a swapped cell every class
-  // becomes another one, a related class (same coarse class) preferred.
-  const uint64_t view = mix(config_.seed, stamp_bits(frame.stamp));
-  Rng view_rng{view};
-  const int cell = config_.confusion_cell;
-  const int offset_x = static_cast<int>(view_rng.next() % cell), offset_y = static_cast<int>(view_rng.next() % cell);
-  const int cells_x = (W + offset_x + cell - 1) / cell, cells_y = (H + offset_y + cell - 1) / cell;
-  const auto& classes = rellis_classes();
-  std::vector<std::vector<int>> related(K);
-  for (int k = 0; k < K; ++k)
-    for (int j = 0; j < K; ++j)
-      if (j != k && classes[j].coarse == classes[k].coarse) related[k].push_back(j);
-  std::vector<int> cell_map(static_cast<std::size_t>(cells_x) * cells_y * K);  // cell, class -> class
-  for (int c = 0; c < cells_x * cells_y; ++c) {
-    Rng rng{mix(view, static_cast<uint64_t>(c))};
-    const bool swapped = rng.uniform() < config_.confusion_rate;
-    for (int k = 0; k < K; ++k) {
-      int to = k;
-      if (swapped) {
-        if (!related[k].empty() && rng.uniform() < config_.related_confusion) {
-          to = related[k][rng.next() % related[k].size()];
-        } else {
-          to = static_cast<int>(rng.next() % (K - 1));
-          to += to >= k;  // any class but k
-        }
-      }
-      cell_map[static_cast<std::size_t>(c) * K + k] = to;
-    }
+  cv::Mat view;
+  if (!frame.view.empty()) {
+    if (frame.view.type() != CV_16UC3) throw Error(where + " view geometry image is not 16-bit with 3 channels");
+    cv::resize(frame.view, view, cv::Size(W, H), 0, 0, cv::INTER_NEAREST);
   }
+  const auto& classes = rellis_classes();
+  const uint64_t view_key = mix(config_.seed, stamp_bits(frame.stamp));
   std::vector<int> seen(static_cast<std::size_t>(H) * W);
-  std::vector<bool> present(K, false);
   for (int y = 0; y < H; ++y) {
     const uint8_t* row = labels.ptr<uint8_t>(y);
-    for (int x = 0; x < W; ++x) {
-      const int c = (y + offset_y) / cell * cells_x + (x + offset_x) / cell;
-      const int k = cell_map[static_cast<std::size_t>(c) * K + class_row_[row[x]]];
-      seen[static_cast<std::size_t>(y) * W + x] = k;
-      present[k] = true;
-    }
+    for (int x = 0; x < W; ++x) seen[static_cast<std::size_t>(y) * W + x] = class_row_[row[x]];
   }
 
-  // Low resolution: each present class's indicator, blurred, weights its prototype.
+  // Where a real network errs (view, exposure, persistent look-alikes), and which class it shows.
+  {
+    std::vector<int> erring_rows(seen.size());
+    for (std::size_t i = 0; i < seen.size(); ++i) erring_rows[i] = classes[seen[i]].coarse == kVoidCoarse ? -1 : seen[i];
+    const sim_failures::PixelErrors errors = sim_failures::pixel_errors(config_, erring_rows, view, frame.stamp, view_key);
+    for (std::size_t i = 0; i < seen.size(); ++i)
+      if (errors.wrong[i])
+        seen[i] = wrong_class(seen[i], mix(config_.seed, 0xC401CE00ull + static_cast<uint64_t>(std::floor(
+                                                                              2.0 * errors.choice[i] + 1000.0))));
+  }
+
+  // Per-view blob swaps: cells of a grid whose offset changes per view; in a swapped cell every
+  // class becomes another one, a related class (same coarse class) preferred.
+  if (config_.confusion_rate > 0.f) {
+    Rng view_rng{view_key};
+    const int cell = config_.confusion_cell;
+    const int offset_x = static_cast<int>(view_rng.next() % cell), offset_y = static_cast<int>(view_rng.next() % cell);
+    const int cells_x = (W + offset_x + cell - 1) / cell, cells_y = (H + offset_y + cell - 1) / cell;
+    std::vector<int> cell_map(static_cast<std::size_t>(cells_x) * cells_y * K);  // cell, class -> class
+    for (int c = 0; c < cells_x * cells_y; ++c) {
+      Rng rng{mix(view_key, static_cast<uint64_t>(c))};
+      const bool swapped = rng.uniform() < config_.confusion_rate;
+      for (int k = 0; k < K; ++k) {
+        int to = k;
+        if (swapped) {
+          if (!related_[k].empty() && rng.uniform() < config_.related_confusion) {
+            to = related_[k][rng.next() % related_[k].size()];
+          } else {
+            to = static_cast<int>(rng.next() % (K - 1));
+            to += to >= k;  // any class but k
+          }
+        }
+        cell_map[static_cast<std::size_t>(c) * K + k] = to;
+      }
+    }
+    for (int y = 0; y < H; ++y)
+      for (int x = 0; x < W; ++x) {
+        int& k = seen[static_cast<std::size_t>(y) * W + x];
+        k = cell_map[static_cast<std::size_t>((y + offset_y) / cell * cells_x + (x + offset_x) / cell) * K + k];
+      }
+  }
+  std::vector<bool> present(K, false);
+  for (const int k : seen) present[k] = true;
+
+  // Low resolution: each present class's indicator averaged over the coarse grid, upsampled
+  // bilinearly, blurred; it weights the class's prototype.
+  const int f = config_.coarse_factor;
+  const cv::Size coarse(std::max(1, (W + f - 1) / f), std::max(1, (H + f - 1) / f));
   std::vector<int> rows;
   std::vector<cv::Mat> weights;
   for (int k = 0; k < K; ++k) {
@@ -180,6 +299,11 @@ void SimulatedDenseEncoder::encode_into(const ImageFrame& frame, FeatureMap& out
     cv::Mat indicator(H, W, CV_32F);
     float* value = indicator.ptr<float>();
     for (std::size_t i = 0; i < seen.size(); ++i) value[i] = seen[i] == k ? 1.f : 0.f;
+    if (f > 1) {
+      cv::Mat small;
+      cv::resize(indicator, small, coarse, 0, 0, cv::INTER_AREA);
+      cv::resize(small, indicator, cv::Size(W, H), 0, 0, cv::INTER_LINEAR);
+    }
     if (config_.blur > 0.f) cv::GaussianBlur(indicator, indicator, cv::Size(0, 0), config_.blur);
     rows.push_back(k);
     weights.push_back(std::move(indicator));
@@ -187,13 +311,14 @@ void SimulatedDenseEncoder::encode_into(const ImageFrame& frame, FeatureMap& out
 
   // One pass per pixel: the (mostly single) weighted prototype plus a bank row, cyclically shifted
   // and signed per pixel (a shifted row of iid Gaussians is again one), then normalised.
+  const int D = config_.dim;
   const bool half = config_.output_precision == EmbeddingPrecision::kFloat16;
   out.reset(D, H, W, config_.output_precision);  // every value is written below
   tbb::parallel_for(0, H, [&](int y) {
     std::vector<float> row_scratch(half ? static_cast<std::size_t>(D) : 0);  // fp32 pixel before rounding
     for (int x = 0; x < W; ++x) {
       const std::size_t i = static_cast<std::size_t>(y) * W + x;
-      const uint64_t h = mix(view, 0x5EED0000000ull + i);
+      const uint64_t h = mix(view_key, 0x5EED0000000ull + i);
       const float* noise = noise_bank_.data() + (h % kNoiseBankSize) * D;
       const int shift = static_cast<int>((h >> 16) % D);
       const float sigma = (h >> 63) ? -config_.noise_sigma : config_.noise_sigma;

@@ -35,6 +35,10 @@ struct MapInfo {
   std::string source;               // what the map was built from (dataset path, simulated or not)
   std::string config;               // how: the effective options of the command that made it (YAML)
   std::optional<ColourBasis> colour_basis;  // the colours it is drawn in (see colour_basis.hpp)
+  // How views were fused (projective_fusion.hpp: "paper", "quality", "single-view"); maps saved
+  // before this was recorded were made with the paper's rule.
+  std::string fusion = "paper";
+  std::string features;             // the feature source's settings (the simulated encoder's failure modes)
 };
 
 struct MergeOptions {

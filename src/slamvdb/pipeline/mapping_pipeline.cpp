@@ -32,6 +32,8 @@ SemanticMap build_map(const Sequence& seq, FeatureSource* features, const Pipeli
   MapInfo info;
   info.model_id = features ? features->model_id() : "";
   info.source = seq.root.string();
+  info.fusion = std::string(to_string(options.fusion.weighting));
+  info.features = features ? features->description() : "";
   return continue_map(SemanticMap(options.map, info), seq, features, options, report, progress);
 }
 
