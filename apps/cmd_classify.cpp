@@ -8,6 +8,7 @@
 #include "command_registry.hpp"
 #include "demo_outputs.hpp"
 #include "feature_options.hpp"
+#include "io_options.hpp"
 #include "option_checks.hpp"
 #include "slamvdb/core/text_escape.hpp"
 #include "slamvdb/io/nav_grid_files.hpp"
@@ -51,6 +52,12 @@ std::vector<int8_t> class_costs(const QuerySet& queries, const std::vector<std::
   return costs;
 }
 
+// The files of --grid PREFIX.
+std::vector<std::filesystem::path> nav_grid_files_of(const std::string& prefix) {
+  const NavGridFiles files = nav_grid_files(prefix);
+  return {files.pgm, files.yaml, files.png};
+}
+
 // The path driven, as far as the map knows it: the submap anchors in the order they were made.
 std::vector<Eigen::Vector2d> submap_path(const SemanticMap& map) {
   std::vector<Eigen::Vector2d> path;
@@ -59,9 +66,6 @@ std::vector<Eigen::Vector2d> submap_path(const SemanticMap& map) {
 }
 
 void run(const Options& opt) {
-  if (!opt.csv.empty()) check_output_file(opt.csv, "--output");
-  if (!opt.png.empty()) check_output_file(opt.png, "--png");
-  if (!opt.grid.empty()) check_output_file(opt.grid + ".pgm", "--grid");
   const QuerySet queries = load_query_set(opt.queries);
   const auto t0 = std::chrono::steady_clock::now();
   const SemanticMap map = load_map(opt.map);
@@ -136,11 +140,20 @@ void add(CLI::App& root) {
   cmd->add_flag("--no-void-rule", opt->no_void_rule, "Let void classes win (the paper's rule is on by default)");
   cmd->add_flag("--ignore-model-id", opt->ignore_model_id,
                 "Accept queries whose model id differs from the map's (the dimension is still checked)");
-  cmd->parse_complete_callback([opt] {
+  add_option_checks(cmd, [opt] {
     if (!opt->png.empty() && std::filesystem::path(opt->png).extension() != ".png")
       usage_error(fmt::format("--png {}: the picture is written as .png", opt->png));
   });
-  cmd->callback([opt] { run(*opt); });
+  auto io = std::make_shared<IoOptions>(cmd);
+  io->input("map", opt->map);
+  io->input("--queries", opt->queries);
+  io->output("-o", opt->csv);
+  io->output("--png", opt->png, png_with_yaml);
+  io->output("--grid", opt->grid, nav_grid_files_of);
+  cmd->callback([opt, io] {
+    io->check();
+    run(*opt);
+  });
 }
 
 const RegisterCommand reg{add};

@@ -12,6 +12,8 @@
 
 #include "colour_basis_option.hpp"
 #include "command_registry.hpp"
+#include "option_checks.hpp"
+#include "io_options.hpp"
 #include "demo_outputs.hpp"
 #include "progress.hpp"
 #include "slamvdb/eval/confusion_png.hpp"
@@ -171,10 +173,10 @@ void run(const Options& opt) {
     fmt::print("\nTerrain segmentation accuracy of the map (paper Table 6.1 form, void ignored), {} scans:\n\n{}\n"
                "Per-image baseline, {} images:\n\n{}",
                e.scans, to_markdown(e.report), b.images, to_markdown(br));
-    write_file_atomically(out / "eval.md", to_markdown(e.report) + "\nPer-image baseline:\n\n" + to_markdown(br));
+    write_output_file(out / "eval.md", to_markdown(e.report) + "\nPer-image baseline:\n\n" + to_markdown(br));
     nlohmann::json json = nlohmann::json::parse(to_json(e.report));
     json["baseline"] = nlohmann::json::parse(to_json(br));
-    write_file_atomically(out / "eval.json", json.dump(2) + "\n");
+    write_output_file(out / "eval.json", json.dump(2) + "\n");
     write_confusion_png(out / "confusion.png", e.voxels, fmt::format("voxel-wise labelling, {} voxels", e.voxels.scored()));
     timings.emplace_back("evaluation", step.seconds());
   }
@@ -208,10 +210,17 @@ void add(CLI::App& root) {
       "vectors on the first half, classify the map, evaluate it on the second half (paper Table 6.1) beside the "
       "per-image baseline, and write the pictures (class map, navigation grid, confusion matrix, a query heat map)");
   cmd->add_option("out,-o,--output", opt->out, "Output folder")->capture_default_str();
-  cmd->add_option("--length", opt->length, "Length of the simulated drive (m)")->capture_default_str()->check(CLI::Range(20.0, 10000.0));
-  cmd->add_option("--seed", opt->seed, "Seed of the simulated drive")->capture_default_str();
+  cmd->add_option("--length", opt->length, "Length of the simulated drive (m)")->capture_default_str()->check(finite_range(20.0, 10000.0));
+  cmd->add_option("--seed", opt->seed, "Seed of the simulated drive")
+      ->capture_default_str()
+      ->check(integer_range(0, bounds::kMaxSeed));
   cmd->add_flag("--fresh", opt->fresh, "Generate the sequence again even if the output folder has one");
-  cmd->callback([opt] { run(*opt); });
+  auto io = std::make_shared<IoOptions>(cmd);
+  io->output_folder("-o", opt->out, {}, /*lock=*/true);  // filled for minutes: one run at a time
+  cmd->callback([opt, io] {
+    io->check();
+    run(*opt);
+  });
 }
 
 const RegisterCommand reg{add};

@@ -7,6 +7,7 @@
 #include <nlohmann/json.hpp>
 
 #include "command_registry.hpp"
+#include "io_options.hpp"
 #include "option_checks.hpp"
 #include "slamvdb/core/error.hpp"
 #include "slamvdb/core/text_escape.hpp"
@@ -71,7 +72,13 @@ void add(CLI::App& root) {
       ->check(integer_range(-1, bounds::kMaxThreads));
   cmd->add_flag("--simulated", opt->simulated, "Use the SIMULATED text encoder (for synthetic data only)")
       ->excludes(model);
-  cmd->callback([opt] { run(*opt); });
+  auto io = std::make_shared<IoOptions>(cmd);
+  io->input("--model", opt->model);
+  io->output("-o", opt->out);
+  cmd->callback([opt, io] {
+    io->check();
+    run(*opt);
+  });
 }
 
 const RegisterCommand reg{add};

@@ -3,13 +3,14 @@
 #include <fmt/format.h>
 
 #include <chrono>
-#include <fstream>
 #include <nlohmann/json.hpp>
 #include <optional>
 
 #include "command_registry.hpp"
 #include "feature_options.hpp"
+#include "io_options.hpp"
 #include "progress.hpp"
+#include "slamvdb/core/output_file.hpp"
 #include "slamvdb/eval/confusion_png.hpp"
 #include "slamvdb/eval/image_baseline.hpp"
 #include "slamvdb/eval/map_evaluation.hpp"
@@ -25,11 +26,6 @@ struct Options {
   FeatureOptions features;
   bool baseline = false, no_void_rule = false, ignore_model_id = false;
 };
-
-void write_file(const std::string& path, const std::string& text) {
-  std::ofstream out(path, std::ios::binary);
-  if (!out || !(out << text) || !out.flush()) throw Error(fmt::format("cannot write {}", path));
-}
 
 // --part A:B: the time fraction [A, B] of the drive (0:1 all of it; 0.5:1 its second half).
 std::pair<double, double> parse_part(const std::string& text) {
@@ -52,9 +48,6 @@ struct Timer {
 void run(Options opt) {
   check_feature_options(opt.features);
   const auto [from, to] = parse_part(opt.part);
-  for (const auto& [file, option] : {std::pair{opt.markdown, "--output"}, {opt.json, "--json"}, {opt.csv, "--csv"},
-                                     {opt.png, "--png"}})
-    if (!file.empty()) check_output_file(file, option);
   const QuerySet queries = load_query_set(opt.queries);
   const Ontology ontology = Ontology::load_or_builtin(opt.ontology);
   ontology_classes_of(queries, ontology);  // fail before any long work
@@ -131,9 +124,9 @@ void run(Options opt) {
     json["baseline"]["images"] = b.images;
     markdown += "\nPer-image baseline:\n\n" + to_markdown(br);
   }
-  if (!opt.markdown.empty()) write_file(opt.markdown, markdown);
-  if (!opt.json.empty()) write_file(opt.json, json.dump(2) + "\n");
-  if (!opt.csv.empty()) write_file(opt.csv, to_csv(r.report));
+  if (!opt.markdown.empty()) write_output_file(opt.markdown, markdown);
+  if (!opt.json.empty()) write_output_file(opt.json, json.dump(2) + "\n");
+  if (!opt.csv.empty()) write_output_file(opt.csv, to_csv(r.report));
   if (!opt.png.empty())
     write_confusion_png(opt.png, r.voxels, fmt::format("voxel-wise labelling, {} voxels", r.voxels.scored()));
 }
@@ -165,7 +158,20 @@ void add(CLI::App& root) {
   cmd->add_flag("--ignore-model-id", opt->ignore_model_id,
                 "Accept queries whose model id differs from the map's (the dimension is still checked)");
   add_feature_options(cmd, opt->features, false);
-  cmd->callback([opt] { run(*opt); });
+  auto io = std::make_shared<IoOptions>(cmd);
+  io->input("map", opt->map);
+  io->input("dataset", opt->dataset);
+  io->input("--queries", opt->queries);
+  io->input("--ontology", opt->ontology);
+  add_feature_inputs(*io, opt->features);
+  io->output("-o", opt->markdown);
+  io->output("--json", opt->json);
+  io->output("--csv", opt->csv);
+  io->output("--png", opt->png);
+  cmd->callback([opt, io] {
+    io->check();
+    run(*opt);
+  });
 }
 
 const RegisterCommand reg{add};

@@ -4,12 +4,13 @@
 #include <fmt/format.h>
 
 #include <chrono>
-#include <fstream>
 #include <optional>
 
 #include "command_registry.hpp"
 #include "feature_options.hpp"
+#include "io_options.hpp"
 #include "progress.hpp"
+#include "slamvdb/core/output_file.hpp"
 #include "slamvdb/eval/confusion_png.hpp"
 #include "slamvdb/eval/image_baseline.hpp"
 #include "slamvdb/io/sequence_reader.hpp"
@@ -23,16 +24,8 @@ struct Options {
   bool no_void_rule = false, ignore_model_id = false;
 };
 
-void write_file(const std::string& path, const std::string& text) {
-  std::ofstream out(path, std::ios::binary);
-  if (!out || !(out << text) || !out.flush()) throw Error(fmt::format("cannot write {}", path));
-}
-
 void run(const Options& opt) {
   check_feature_options(opt.features);
-  for (const auto& [file, option] : {std::pair{opt.markdown, "--output"}, {opt.json, "--json"}, {opt.csv, "--csv"},
-                                     {opt.png, "--png"}})
-    if (!file.empty()) check_output_file(file, option);
   const QuerySet queries = load_query_set(opt.queries);
   const Ontology ontology = Ontology::load_or_builtin(opt.ontology);
   ontology_classes_of(queries, ontology);  // fail before reading images
@@ -57,9 +50,9 @@ void run(const Options& opt) {
              "{} ({}), void -> second best {}\n\n{}",
              r.images, r.pixels, r.unlabelled_pixels, opt.queries, escape_control(queries.model_id),
              opt.no_void_rule ? "off" : "on", to_markdown(report));
-  if (!opt.markdown.empty()) write_file(opt.markdown, to_markdown(report));
-  if (!opt.json.empty()) write_file(opt.json, to_json(report));
-  if (!opt.csv.empty()) write_file(opt.csv, to_csv(report));
+  if (!opt.markdown.empty()) write_output_file(opt.markdown, to_markdown(report));
+  if (!opt.json.empty()) write_output_file(opt.json, to_json(report));
+  if (!opt.csv.empty()) write_output_file(opt.csv, to_csv(report));
   if (!opt.png.empty())
     write_confusion_png(opt.png, r.matrix, fmt::format("per-image baseline, {} images", r.images));
 }
@@ -84,7 +77,19 @@ void add(CLI::App& root) {
   cmd->add_flag("--ignore-model-id", opt->ignore_model_id,
                 "Accept queries whose model id differs from the features' (the dimension is still checked)");
   add_feature_options(cmd, opt->features, false);
-  cmd->callback([opt] { run(*opt); });
+  auto io = std::make_shared<IoOptions>(cmd);
+  io->input("dataset", opt->dataset);
+  io->input("--queries", opt->queries);
+  io->input("--ontology", opt->ontology);
+  add_feature_inputs(*io, opt->features);
+  io->output("-o", opt->markdown);
+  io->output("--json", opt->json);
+  io->output("--csv", opt->csv);
+  io->output("--png", opt->png);
+  cmd->callback([opt, io] {
+    io->check();
+    run(*opt);
+  });
 }
 
 const RegisterCommand reg{add};

@@ -5,12 +5,14 @@
 
 #include <algorithm>
 #include <filesystem>
-#include <fstream>
 #include <memory>
 #include <nlohmann/json.hpp>
 
 #include "command_registry.hpp"
+#include "option_checks.hpp"
+#include "io_options.hpp"
 #include "slamvdb/core/error.hpp"
+#include "slamvdb/core/output_file.hpp"
 #include "slamvdb/io/trajectory_io.hpp"
 #include "slamvdb/io/trajectory_plot.hpp"
 #include "slamvdb/localization/trajectory_metrics.hpp"
@@ -18,7 +20,6 @@
 namespace slamvdb::cli::cmd_eval_trajectory {
 namespace {
 
-namespace fs = std::filesystem;
 using namespace slamvdb::localization;
 
 struct Options {
@@ -94,19 +95,9 @@ void run(const Options& opt) {
         {"rpe", {{"translation_rmse_m", rpe.translation_rmse}, {"rotation_rmse_deg", rpe.rotation_rmse_deg}}},
         {"drift", {{"translation_percent", drift.translation_percent}, {"rotation_deg_per_m", drift.rotation_deg_per_m},
                    {"segments", drift.segments}, {"segment_lengths_m", drift.lengths}}}};
-    std::ofstream out(opt.json);
-    out << j.dump(2) << "\n";
-    if (!out) throw Error(fmt::format("cannot write {}", opt.json));
+    write_output_file(opt.json, j.dump(2) + "\n");
   }
 }
-
-const CLI::Validator kWritableParent(
-    [](std::string& path) -> std::string {
-      const fs::path parent = fs::absolute(fs::path(path)).parent_path();
-      if (!fs::is_directory(parent)) return fmt::format("directory {} does not exist", parent.string());
-      return {};
-    },
-    "PATH", "in an existing directory");
 
 void add(CLI::App& root) {
   auto opt = std::make_shared<Options>();
@@ -116,13 +107,22 @@ void add(CLI::App& root) {
       "alignment, RPE, KITTI-style drift (segments of 100..800 m, or 10..50% of a path shorter than 200 m).");
   cmd->add_option("estimate", opt->estimate, "Estimated poses")->required()->check(CLI::ExistingFile);
   cmd->add_option("truth", opt->truth, "Ground-truth poses")->required()->check(CLI::ExistingFile);
-  cmd->add_option("--png", opt->png, "Write a plot seen from above")->check(kWritableParent);
-  cmd->add_option("-o,--output,--json", opt->json, "Write the metrics as JSON")->check(kWritableParent);
+  cmd->add_option("--png", opt->png, "Write a plot seen from above");
+  cmd->add_option("-o,--output,--json", opt->json, "Write the metrics as JSON");
   cmd->add_option("--loops", opt->loops, "JSON summary of `slamvdb odometry --json` whose loops the plot draws")
       ->check(CLI::ExistingFile);
   cmd->add_option("--max-dt", opt->max_dt, "Largest stamp difference when pairing TUM files (s)")
-      ->check(CLI::PositiveNumber)->capture_default_str();
-  cmd->callback([opt] { run(*opt); });
+      ->check(finite_range(0, 1e6, true))->capture_default_str();
+  auto io = std::make_shared<IoOptions>(cmd);
+  io->input("estimate", opt->estimate);
+  io->input("truth", opt->truth);
+  io->input("--loops", opt->loops);
+  io->output("--png", opt->png);
+  io->output("-o", opt->json);
+  cmd->callback([opt, io] {
+    io->check();
+    run(*opt);
+  });
 }
 
 const RegisterCommand reg{add};

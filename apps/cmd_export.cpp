@@ -14,11 +14,12 @@
 #include "command_registry.hpp"
 #include "demo_outputs.hpp"
 #include "feature_options.hpp"
+#include "io_options.hpp"
 #include "option_checks.hpp"
 #include "progress.hpp"
 #include "slamvdb/core/csv.hpp"
 #include "slamvdb/core/error.hpp"
-#include "slamvdb/io/atomic_file.hpp"
+#include "slamvdb/core/output_file.hpp"
 #include "slamvdb/io/html_viewer.hpp"
 #include "slamvdb/io/map_export.hpp"
 #include "slamvdb/io/map_pictures.hpp"
@@ -97,14 +98,14 @@ void run(Options opt) {
     const auto t = std::chrono::steady_clock::now();
     if (format == "ply") {
       std::optional<ProgressBar> bar;
-      write_ply(output, voxels, opt.ascii ? PlyEncoding::kAscii : PlyEncoding::kBinaryLittleEndian,
+      const std::uint64_t bytes = write_ply(output, voxels, opt.ascii ? PlyEncoding::kAscii : PlyEncoding::kBinaryLittleEndian,
                 [&](std::size_t done, std::size_t total) {
                   if (!bar) bar.emplace("export ply", total, "voxels");
                   bar->update(done);
                 });
       if (bar) bar->finish();
       fmt::print("PLY  {}: {} vertices (x y z float, red green blue uchar, count int), {:.1f} MB", output,
-                 voxels.size(), static_cast<double>(fs::file_size(output)) / 1e6);
+                 voxels.size(), static_cast<double>(bytes) / 1e6);
     } else if (format == "pcd") {
       write_pcd_voxels(output, voxels);
       fmt::print("PCD  {}: {} points (x y z rgb count, binary)", output, voxels.size());
@@ -137,7 +138,7 @@ void run(Options opt) {
           if (v.count)
             csv.row({fmt::format("{:.3f}", v.position.x()), fmt::format("{:.3f}", v.position.y()),
                      fmt::format("{:.3f}", v.position.z()), fmt::format("{}", v.count)});
-        write_file_atomically(output, csv.text());
+        write_output_file(output, csv.text());
         fmt::print("CSV  {}: {} rows x,y,z,count (give --queries for class,score,margin)", output, csv.rows());
       }
     } else if (format == "npy") {
@@ -191,7 +192,7 @@ void add(CLI::App& root) {
   cmd->add_flag("--ignore-model-id", opt->ignore_model_id,
                 "With --queries or --colour-basis: accept another model id (same dim)");
   add_colour_basis_option(cmd, opt->colour_basis);
-  cmd->parse_complete_callback([opt] {
+  add_option_checks(cmd, [opt] {
     if (!opt->colour_basis.file.empty() && !opt->queries.empty())
       usage_error("--colour-basis colours by PCA; with --queries the colours are the classes'");
     if (!opt->ply.empty()) opt->outputs.push_back(opt->ply);
@@ -204,10 +205,23 @@ void add(CLI::App& root) {
       const std::string format = format_of(output, opt->outputs.size() == 1 ? opt->format : "");
       if (format == "html" && !html_viewer_available())
         usage_error("-o " + output + ": this slamvdb was built without the HTML viewer (npm ci --prefix viewer)");
-      check_output_file(output, "--output");
     }
   });
-  cmd->callback([opt] { run(*opt); });
+  auto io = std::make_shared<IoOptions>(cmd);
+  io->input("map", opt->map);
+  io->input("--queries", opt->queries);
+  io->input("--colour-basis", opt->colour_basis.file);
+  // -o, with --ply and --png added to it once parsed; a PNG has its .yaml, an NPY three files.
+  io->output("-o", opt->outputs, [opt](const std::string& output) -> std::vector<fs::path> {
+    const std::string format = format_of(output, opt->outputs.size() == 1 ? opt->format : "");
+    if (format == "png") return png_with_yaml(output);
+    if (format == "npy") return embeddings_npy_files(output);
+    return {output};
+  });
+  cmd->callback([opt, io] {
+    io->check();
+    run(*opt);
+  });
 }
 
 const RegisterCommand reg{add};

@@ -5,6 +5,7 @@
 #include "command_registry.hpp"
 #include "feature_options.hpp"
 #include "slamvdb/core/text_escape.hpp"
+#include "io_options.hpp"
 #include "slamvdb/ontology/ontology.hpp"
 #include "slamvdb/query/query_set.hpp"
 
@@ -16,7 +17,6 @@ struct Options {
 };
 
 void run(const Options& opt) {
-  check_output_file(opt.output, "--output");
   std::optional<Ontology> ontology;
   if (!opt.ontology.empty()) ontology = Ontology::load_or_builtin(opt.ontology);
   const QuerySet q = import_query_csv_dir(opt.dir, opt.model_id, ontology ? &*ontology : nullptr);
@@ -44,7 +44,20 @@ void add(CLI::App& root) {
   cmd->add_option("--ontology", opt->ontology,
                   "Ontology (file or built-in name) giving class order, colours and void classes; every class needs "
                   "a file");
-  cmd->callback([opt] { run(*opt); });
+  auto io = std::make_shared<IoOptions>(cmd);
+  io->input("--ontology", opt->ontology);
+  io->input_files("csv_dir", [opt] {  // the CLASS.csv files read
+    std::vector<std::string> files;
+    std::error_code ec;
+    for (std::filesystem::directory_iterator it(opt->dir, ec), end; !ec && it != end; it.increment(ec))
+      if (it->path().extension() == ".csv") files.push_back(it->path().string());
+    return files;
+  });
+  io->output("-o", opt->output);
+  cmd->callback([opt, io] {
+    io->check();
+    run(*opt);
+  });
 }
 
 const RegisterCommand reg{add};

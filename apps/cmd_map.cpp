@@ -8,6 +8,7 @@
 
 #include "colour_basis_option.hpp"
 #include "command_registry.hpp"
+#include "io_options.hpp"
 #include "yaml_config.hpp"
 #include "map_option_checks.hpp"
 #include "option_checks.hpp"
@@ -45,19 +46,12 @@ struct Options {
   bool odometry = false;
   TrackingOptions tracking;
   double queue_mb = 1024;
+  double max_memory_gb = 0;
   std::string occlusion = "active";
   std::string fusion_weighting = "quality";
   double max_image_pixels = static_cast<double>(kDefaultMaxImagePixels);
   ColourBasisChoice colour_basis;
 };
-
-std::array<double, 5> parse_distortion(const std::string& text) {
-  std::istringstream in(text);
-  std::array<double, 5> d{};
-  for (double& v : d)
-    if (!(in >> v)) throw Error(fmt::format("--distortion '{}' needs five numbers: k1 k2 p1 p2 k3", text));
-  return d;
-}
 
 std::unique_ptr<FeatureSource> make_feature_source(const Options& opt, const Sequence& seq) {
   if (opt.features == "none") return nullptr;
@@ -135,7 +129,7 @@ void run(Options opt, const std::string& config) {
   opt.pipeline.map.semantic.precision = precision_from_string(opt.precision);
   opt.pipeline.map.validate();
   ReadOptions read_options;
-  if (!opt.distortion.empty()) read_options.distortion = parse_distortion(opt.distortion);
+  if (!opt.distortion.empty()) read_options.distortion = parse_distortion_option(opt.distortion);
   read_options.max_image_pixels = static_cast<std::int64_t>(opt.max_image_pixels);
   const Sequence seq = read_sequence(opt.dataset, read_options);
   fmt::print("sequence {} ({} layout): {} scans, {} images\n", seq.root.string(), seq.layout, seq.scans.size(),
@@ -205,10 +199,9 @@ void run(Options opt, const std::string& config) {
   map.set_info(final_info);
   record_colour_basis(map, opt.colour_basis);
   // With submaps unloaded, memory holds only part of the map: its size is then not recorded.
-  if (writer) writer->finish(map.info(), report.submaps_unloaded ? 0 : map.memory_bytes());
-  else save_map(opt.output, map);
   // What the file holds (with submaps unloaded during the run, more than memory does now).
-  const MapFileSummary saved = read_map_summary(opt.output);
+  const MapFileSummary saved = writer ? writer->finish(map.info(), report.submaps_unloaded ? 0 : map.memory_bytes())
+                                      : save_map(opt.output, map);
   fmt::print("map saved to {}: {} submaps, {} occupied voxels, {} semantic entries ({} {}-d), {:.1f} MB file{}\n",
              opt.output, saved.submaps.size(), saved.occupied_voxels, saved.semantic_voxels, opt.precision,
              map.params().semantic.dim, saved.file_bytes / 1e6,
@@ -276,10 +269,12 @@ void add(CLI::App& root) {
       ->check(finite_range(0, bounds::kMaxRange, true));
   cmd->add_option("--max-scans", opt->pipeline.max_scans, "Map only the first N scans (0: all)")
       ->capture_default_str()
-      ->check(integer_range(0, 1'000'000'000));
+      ->check(integer_range(0, bounds::kMaxCount));
   cmd->add_option("--distortion", opt->distortion, "Camera plumb_bob coefficients 'k1 k2 p1 p2 k3' (overrides the dataset)");
   cmd->add_option("--feature-size", opt->feature_size, "Simulated feature map size WIDTHxHEIGHT")->capture_default_str();
-  cmd->add_option("--sim-seed", opt->sim.seed, "Seed of the simulated encoder")->capture_default_str();
+  cmd->add_option("--sim-seed", opt->sim.seed, "Seed of the simulated encoder")
+      ->capture_default_str()
+      ->check(integer_range(0, bounds::kMaxSeed));
   cmd->add_option("--sim-feature-precision", opt->sim_feature_precision,
                   "Precision of the SIMULATED feature maps handed to fusion: fp32, or fp16 as a network run in half "
                   "precision gives them (the fp32 values rounded; fusion reads half the bytes). Networks and .npy "
@@ -310,7 +305,7 @@ void add(CLI::App& root) {
                 "Poses from the project's own LiDAR odometry and loop closure, computed over the scans before mapping "
                 "(placed at the first ground-truth pose when the sequence has one). `slamvdb slam` does both in one "
                 "pass instead");
-  cmd->add_flag("--no-loop-closure", [opt](std::int64_t) { opt->tracking.loop_closure = false; },
+  cmd->add_flag("--no-loop-closure", [opt](std::int64_t n) { opt->tracking.loop_closure = n <= 0; },
                 "With --odometry: odometry only");
   cmd->add_option("--pose-format", opt->pose_format, "Format of --poses: auto (from the first row), kitti or tum")
       ->capture_default_str()
@@ -325,10 +320,11 @@ void add(CLI::App& root) {
                   "the map file) and come back when it returns (0: keep all in memory)")
       ->capture_default_str()
       ->check(finite_range(0, 1e7));
+  add_max_memory_option(cmd, opt->max_memory_gb);
   add_colour_basis_option(cmd, opt->colour_basis);
-  cmd->parse_complete_callback([opt] {
-    check_map_options(opt->pipeline, opt->features, opt->feature_size, opt->sim_feature_precision, opt->precision,
-                      opt->distortion, opt->output);
+  add_option_checks(cmd, [opt] {
+    check_map_options(opt->pipeline, MappingChoices{opt->features, opt->feature_size, opt->sim_feature_precision,
+                                                    opt->precision, opt->distortion, opt->max_memory_gb});
     check_colour_basis_option(opt->colour_basis, opt->pipeline.map.semantic.dim);
     if (opt->resume && opt->no_checkpoints) usage_error("--resume continues a map file written submap by submap: it "
                                                         "cannot go with --no-checkpoints");
@@ -339,7 +335,16 @@ void add(CLI::App& root) {
     if (opt->pipeline.unload_radius > 0 && opt->no_checkpoints)
       usage_error("--unload-radius needs the map file written while mapping: it cannot go with --no-checkpoints");
   });
-  cmd->callback([opt, cmd] { run(*opt, effective_config(*cmd)); });
+  auto io = std::make_shared<IoOptions>(cmd);
+  io->input("dataset", opt->dataset);
+  io->input("--poses", opt->poses);
+  io->input("--model", opt->model);
+  io->input("--colour-basis", opt->colour_basis.file);
+  io->output("-o", opt->output, {}, /*lock=*/true);  // written while mapping: one run at a time
+  cmd->callback([opt, cmd, io] {
+    io->check();
+    run(*opt, effective_config(*cmd));
+  });
 }
 
 const RegisterCommand reg{add};

@@ -5,15 +5,17 @@
 #include <tbb/global_control.h>
 
 #include <filesystem>
-#include <fstream>
 #include <map>
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <optional>
 
 #include "command_registry.hpp"
+#include "io_options.hpp"
+#include "option_checks.hpp"
 #include "progress.hpp"
 #include "slamvdb/core/error.hpp"
+#include "slamvdb/core/output_file.hpp"
 #include "slamvdb/core/text_escape.hpp"
 #include "slamvdb/io/scan_source.hpp"
 #include "slamvdb/io/trajectory_io.hpp"
@@ -24,7 +26,6 @@
 namespace slamvdb::cli::cmd_odometry {
 namespace {
 
-namespace fs = std::filesystem;
 using namespace slamvdb::localization;
 
 struct Options {
@@ -37,15 +38,6 @@ struct Options {
   int max_consecutive_failures = 10;
   int threads = 0;
 };
-
-const CLI::Validator kWritableParent(
-    [](std::string& path) -> std::string {
-      const fs::path parent = fs::absolute(fs::path(path)).parent_path();
-      if (!fs::is_directory(parent)) return fmt::format("directory {} does not exist", parent.string());
-      if (fs::is_directory(path)) return fmt::format("{} is a directory", path);
-      return {};
-    },
-    "PATH", "in an existing directory");
 
 void run(const Options& opt) {
   std::optional<tbb::global_control> threads;
@@ -106,11 +98,7 @@ void run(const Options& opt) {
     summary["loops_rejected"] = rejected;
   }
   fmt::print("  poses written to {} ({})\n", opt.output, opt.format == PoseFormat::kKitti ? "KITTI" : "TUM");
-  if (!opt.json.empty()) {
-    std::ofstream out(opt.json);
-    out << summary.dump(2) << "\n";
-    if (!out) throw Error(fmt::format("cannot write {}", opt.json));
-  }
+  if (!opt.json.empty()) write_output_file(opt.json, summary.dump(2) + "\n");
 }
 
 void add(CLI::App& root) {
@@ -121,7 +109,7 @@ void add(CLI::App& root) {
       "folder of scan files (KITTI .bin or .pcd, in name order; stamps from times.txt there, else index / --rate), "
       "optionally with loop closure; writes T_world_sensor per scan (world = the first scan's sensor frame).");
   cmd->add_option("input", opt->input, "Dataset folder or folder of .bin / .pcd scans")->required()->check(CLI::ExistingDirectory);
-  cmd->add_option("-o,--output", opt->output, "Pose file to write")->required()->check(kWritableParent);
+  cmd->add_option("-o,--output", opt->output, "Pose file to write")->required();
   cmd->add_option("--format", opt->format, "Pose file format: kitti (3x4 rows) or tum (stamp tx ty tz qx qy qz qw)")
       ->transform(CLI::CheckedTransformer(std::map<std::string, PoseFormat>{{"kitti", PoseFormat::kKitti},
                                                                              {"tum", PoseFormat::kTum}}))
@@ -129,24 +117,26 @@ void add(CLI::App& root) {
   cmd->add_flag("--loop-closure", opt->loop_closure,
                 "Close loops (ScanContext + proximity candidates, ICP verification, pose graph) and write the "
                 "corrected poses");
-  cmd->add_option("--json", opt->json, "Also write a JSON summary (counts, accepted loops)")->check(kWritableParent);
+  cmd->add_option("--json", opt->json, "Also write a JSON summary (counts, accepted loops)");
   cmd->add_option("--rate", opt->rate_hz, "Scan rate (Hz) for stamping a folder without times.txt")
-      ->check(CLI::PositiveNumber)->capture_default_str();
-  cmd->add_option("--voxel-size", opt->odometry.voxel_size, "Local-map voxel (m)")->check(CLI::Range(0.05, 10.0))->capture_default_str();
-  cmd->add_option("--max-range", opt->odometry.max_range, "Farthest return used (m)")->check(CLI::Range(1.0, 1000.0))->capture_default_str();
-  cmd->add_option("--min-range", opt->odometry.min_range, "Nearest return used (m)")->check(CLI::Range(0.0, 100.0))->capture_default_str();
+      ->check(finite_range(0, 1e6, true))->capture_default_str();
+  cmd->add_option("--voxel-size", opt->odometry.voxel_size, "Local-map voxel (m)")->check(finite_range(0.05, 10.0))->capture_default_str();
+  cmd->add_option("--max-range", opt->odometry.max_range, "Farthest return used (m)")->check(finite_range(1.0, 1000.0))->capture_default_str();
+  cmd->add_option("--min-range", opt->odometry.min_range, "Nearest return used (m)")->check(finite_range(0.0, 100.0))->capture_default_str();
   cmd->add_option("--keyframe-distance", opt->keyframe_distance, "Metres of path between loop-closure keyframes")
-      ->check(CLI::Range(0.1, 100.0))->capture_default_str();
+      ->check(finite_range(0.1, 100.0))->capture_default_str();
   cmd->add_option("--max-consecutive-failures", opt->max_consecutive_failures,
                   "Fail when more scans than this in a row cannot be registered")
-      ->check(CLI::NonNegativeNumber)->capture_default_str();
-  cmd->add_option("--threads", opt->threads, "Worker threads (0: all cores)")->check(CLI::NonNegativeNumber);
-  cmd->callback([opt] {
-    try {
-      opt->odometry.validate();
-    } catch (const Error& e) {
-      throw CLI::ValidationError(e.what());
-    }
+      ->check(integer_range(0, bounds::kMaxCount))->capture_default_str();
+  cmd->add_option("--threads", opt->threads, "Worker threads (0: all cores)")->check(integer_range(0, bounds::kMaxThreads));
+  // The tracking checks `slam` runs too (the library's own).
+  add_option_checks(cmd, [opt] { check_as_usage([&] { opt->odometry.validate(); }); });
+  auto io = std::make_shared<IoOptions>(cmd);
+  io->input("input", opt->input);
+  io->output("-o", opt->output);
+  io->output("--json", opt->json);
+  cmd->callback([opt, io] {
+    io->check();
     run(*opt);
   });
 }

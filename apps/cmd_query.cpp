@@ -6,12 +6,13 @@
 
 #include "command_registry.hpp"
 #include "feature_options.hpp"
+#include "io_options.hpp"
 #include "option_checks.hpp"
 #include "slamvdb/core/csv.hpp"
 #include "slamvdb/core/point_text.hpp"
 #include "slamvdb/inference/simulated_encoders.hpp"
 #include "demo_outputs.hpp"
-#include "slamvdb/io/atomic_file.hpp"
+#include "slamvdb/core/output_file.hpp"
 #include "slamvdb/io/html_viewer.hpp"
 #include "slamvdb/io/image_io.hpp"
 #include "slamvdb/io/map_pictures.hpp"
@@ -168,7 +169,7 @@ void run_points(const Options& opt, const SemanticMap& map, const std::vector<Ve
     // characters), so the data are printed as they would be written.
     fmt::print("{}", csv.text());
   } else {
-    write_file_atomically(opt.output, csv.text());
+    write_output_file(opt.output, csv.text());
     fmt::print("{} points, {} in a semantic voxel: {}\n", answers.size(),
                std::count_if(answers.begin(), answers.end(), [](const PointQuery& a) { return a.found; }), opt.output);
   }
@@ -189,7 +190,6 @@ void run(const Options& opt) {
   if ((!opt.classes.empty() || !opt.not_classes.empty()) && opt.queries.empty())
     throw CLI::ValidationError("--class", "needs --queries QUERIES.json");
   const std::vector<Vec3d> points = spatial ? read_points(opt) : std::vector<Vec3d>{};
-  if (!opt.output.empty()) check_output_file(opt.output, "--output");
   const SemanticMap map = load_map(opt.map);
   if (spatial) return run_points(opt, map, points);
 
@@ -222,7 +222,7 @@ void write_results(const std::string& format, const std::string& output, const O
                fmt::format("{:.3f}", p.z()), fmt::format("{:.6f}", results[i].score),
                fmt::format("{}", results[i].count)});
     }
-    write_file_atomically(output, csv.text());
+    write_output_file(output, csv.text());
     fmt::print("CSV  {}: {} rows\n", output, results.size());
   } else if (format == ".png") {
     std::vector<ClassifiedCell> cells;
@@ -278,14 +278,17 @@ void add(CLI::App& root) {
   cmd->add_option("--image-model", opt->image_model,
                   "TorchScript CLIP image encoder (default: the SIMULATED one, which reads a 2D label image)")
       ->check(CLI::ExistingFile);
-  cmd->add_option("--sim-seed", opt->sim_seed, "Seed of the simulated encoders (as for `map`)")->capture_default_str();
+  cmd->add_option("--sim-seed", opt->sim_seed, "Seed of the simulated encoders (as for `map`)")
+      ->capture_default_str()
+      ->check(integer_range(0, bounds::kMaxSeed));
   cmd->add_option("--sim-text-gap", opt->sim_text_gap, "SIMULATED text-image gap (see train-queries)")
       ->capture_default_str()
       ->check(kNonNegative);
   cmd->add_option("--top-k", opt->top_k, "Keep the K most similar voxels (0: all above --threshold)")
-      ->capture_default_str();
+      ->capture_default_str()
+      ->check(integer_range(0, bounds::kMaxCount));
   cmd->add_option("--threshold", opt->threshold, "Keep voxels whose cosine similarity is at least this")
-      ->check(CLI::Range(-1.0, 1.0));
+      ->check(finite_range(-1.0, 1.0));
   cmd->add_option("--at", opt->at,
                   "A world point to look up (repeatable): x,y,z or \"x y z\", decimal numbers with '.' (no hex, nan, "
                   "inf or trailing text)");
@@ -303,14 +306,30 @@ void add(CLI::App& root) {
                 "Accept an encoder or queries whose model id differs from the map's (the dimension is still checked)");
   cmd->add_option("--ply", opt->ply, "Also write the results as a PLY coloured by score");
   cmd->add_option("--png", opt->png, "Also write the heat map from above (PNG + map_server YAML)");
-  cmd->parse_complete_callback([opt] {
+  add_option_checks(cmd, [opt] {
     output_format(opt->output);
     if (!opt->ply.empty() && output_format(opt->ply) != ".ply") usage_error("--ply " + opt->ply + ": not a .ply name");
     if (!opt->png.empty() && output_format(opt->png) != ".png") usage_error("--png " + opt->png + ": not a .png name");
-    for (const std::string* o : {&opt->output, &opt->ply, &opt->png})
-      if (!o->empty()) check_output_file(*o, "--output");
   });
-  cmd->callback([opt] { run(*opt); });
+  auto io = std::make_shared<IoOptions>(cmd);
+  io->input("map", opt->map);
+  io->input("--queries", opt->queries);
+  io->input("--image", opt->images);
+  io->input("--vector", opt->vectors);
+  io->input("--not-vector", opt->not_vectors);
+  io->input("--text-model", opt->text_model);
+  io->input("--image-model", opt->image_model);
+  io->input("--at-csv", opt->at_csv);
+  const FilesOf files_of = [](const std::string& output) {
+    return output_format(output) == ".png" ? png_with_yaml(output) : std::vector<std::filesystem::path>{output};
+  };
+  io->output("-o", opt->output, files_of);
+  io->output("--ply", opt->ply);
+  io->output("--png", opt->png, files_of);
+  cmd->callback([opt, io] {
+    io->check();
+    run(*opt);
+  });
 }
 
 const RegisterCommand reg{add};

@@ -8,11 +8,12 @@
 #include <opencv2/imgproc.hpp>
 
 #include "command_registry.hpp"
+#include "io_options.hpp"
 #include "option_checks.hpp"
 #include "slamvdb/core/error.hpp"
 #include "slamvdb/core/ontology.hpp"
 #include "slamvdb/core/text_escape.hpp"
-#include "slamvdb/io/atomic_file.hpp"
+#include "slamvdb/core/output_file.hpp"
 #include "slamvdb/io/image_io.hpp"
 #include "slamvdb/inference/simulated_encoders.hpp"
 #include "slamvdb/io/npy.hpp"
@@ -109,7 +110,7 @@ cv::Mat best_class(const FeatureMap& features, const std::vector<std::vector<flo
 void write_png_atomically(const fs::path& path, const cv::Mat& image) {
   std::vector<uchar> png;
   if (!cv::imencode(".png", image, png)) throw Error(fmt::format("cannot encode {}", path.string()));
-  write_file_atomically(path, std::string_view(reinterpret_cast<const char*>(png.data()), png.size()));
+  write_output_file(path, std::string_view(reinterpret_cast<const char*>(png.data()), png.size()));
 }
 
 void run(const Options& opt) {
@@ -153,7 +154,7 @@ void run(const Options& opt) {
     legend += fmt::format("{}\t{}\t#{:02x}{:02x}{:02x}\t{}\t{:.1f}%\n", k, names[k], colours[k][0], colours[k][1],
                           colours[k][2], counts[k], 100.0 * counts[k] / total);
   }
-  write_file_atomically(opt.out_dir / "legend.txt", legend);
+  write_output_file(opt.out_dir / "legend.txt", legend);
   // Model ids come from manifests, class names from the user: printed with control characters escaped.
   std::printf("%s: %d x %d x %d features (%s), best of %zu classes (%s) -> %s\n", escape_control(frame.source).c_str(),
               features.dim(), features.height(), features.width(), escape_control(enc.dense->model_id()).c_str(),
@@ -187,7 +188,19 @@ void add(CLI::App& root) {
   cmd->add_option("--labels", opt->labels, "2D label PNG of the image (RELLIS-3D ids), for --simulated")
       ->needs(simulated)
       ->check(CLI::ExistingFile);
-  cmd->callback([opt] { run(*opt); });
+  auto io = std::make_shared<IoOptions>(cmd);
+  io->input("image", opt->image);
+  io->input("--model", opt->model);
+  io->input("--text-model", opt->text_model);
+  io->input("--labels", opt->labels);
+  io->output_folder("-o", opt->out_dir, [](const std::string& dir) -> std::vector<fs::path> {
+    return {fs::path(dir) / "features.npy", fs::path(dir) / "labels.png", fs::path(dir) / "classes.png",
+            fs::path(dir) / "legend.txt"};
+  });
+  cmd->callback([opt, io] {
+    io->check();
+    run(*opt);
+  });
 }
 
 const RegisterCommand reg{add};

@@ -11,6 +11,8 @@
 #include "command_registry.hpp"
 #include "yaml_config.hpp"
 #include "feature_options.hpp"
+#include "map_option_checks.hpp"
+#include "io_options.hpp"
 #include "option_checks.hpp"
 #include "progress.hpp"
 #include "slamvdb/core/error.hpp"
@@ -31,6 +33,7 @@ struct Options {
   TrackingOptions tracking;
   PipelineOptions pipeline;
   double min_merge_overlap = MergeOptions{}.min_overlap;
+  double max_memory_gb = 0;
   ColourBasisChoice colour_basis;
 };
 
@@ -124,8 +127,8 @@ void add(CLI::App& root) {
       ->transform(CLI::CheckedTransformer(std::map<std::string, PoseFormat>{{"kitti", PoseFormat::kKitti},
                                                                              {"tum", PoseFormat::kTum}}))
       ->default_str("kitti");
-  add_feature_options(cmd, opt->features, false);
-  cmd->add_flag("--no-loop-closure", [opt](std::int64_t) { opt->tracking.loop_closure = false; },
+  add_feature_options(cmd, opt->features, false, false);
+  cmd->add_flag("--no-loop-closure", [opt](std::int64_t n) { opt->tracking.loop_closure = n <= 0; },
                 "Odometry only (no submap moves or merges)");
   cmd->add_option("--sim-odometry-drift", opt->tracking.simulated_drift_deg_per_100m,
                   "SIMULATED odometry drift: degrees of heading error added per 100 m travelled, to see loop closure "
@@ -145,22 +148,30 @@ void add(CLI::App& root) {
                   "Merge two submaps joined by a loop when this share of occupied voxels agrees")
       ->capture_default_str()
       ->check(finite_range(0, 1));
+  add_max_memory_option(cmd, opt->max_memory_gb);
   add_colour_basis_option(cmd, opt->colour_basis);
-  cmd->parse_complete_callback([opt] {
+  add_option_checks(cmd, [opt] {
     check_feature_options(opt->features);
+    opt->pipeline.map.semantic.dim = opt->features.dim;
+    // The same checks as `map`: the feature maps, the voxel counts, the memory of one scan.
+    const bool fp32 = opt->pipeline.map.semantic.precision == EmbeddingPrecision::kFloat32;
+    check_map_options(opt->pipeline, MappingChoices{opt->features.features, opt->features.feature_size, "fp32",
+                                                    fp32 ? "fp32" : "fp16", "", opt->max_memory_gb});
     check_colour_basis_option(opt->colour_basis, opt->features.dim);
-    check_output_file(opt->output, "-o");
-    if (!opt->poses_out.empty()) check_output_file(opt->poses_out, "--poses-out");
-    try {
-      opt->tracking.odometry.validate();
+    check_as_usage([&] {
+      opt->tracking.odometry.validate();  // the tracking checks `odometry` runs too
       opt->tracking.loops.validate();
       opt->pipeline.map.validate();
-    } catch (const Error& e) {
-      usage_error(e.what());
-    }
+    });
   });
-  cmd->callback([opt, cmd] {
-    opt->pipeline.map.semantic.dim = opt->features.dim;
+  auto io = std::make_shared<IoOptions>(cmd);
+  io->input("dataset", opt->dataset);
+  io->input("--colour-basis", opt->colour_basis.file);
+  add_feature_inputs(*io, opt->features);
+  io->output("-o", opt->output, {}, /*lock=*/true);  // one run at a time
+  io->output("--poses-out", opt->poses_out);
+  cmd->callback([opt, cmd, io] {
+    io->check();
     run(*opt, effective_config(*cmd));
   });
 }

@@ -11,6 +11,7 @@
 #include <regex>
 
 #include "command_registry.hpp"
+#include "io_options.hpp"
 #include "option_checks.hpp"
 #include "progress.hpp"
 #include "slamvdb/core/error.hpp"
@@ -47,12 +48,10 @@ void check_synth_options(Options& opt, const CLI::App& cmd) {
       if (cmd.count(option) > 0) usage_error(fmt::format("--perfect-rig sets the rig errors to 0: it cannot go with {}", option));
     opt.config.rig_translation_error_m = opt.config.rig_rotation_error_deg = opt.config.rig_time_offset_s = 0;
   }
-  try {
+  check_as_usage([&] {
     parse_image_size(opt.image_size, opt.config);
     opt.config.validate();
-  } catch (const Error& e) {
-    usage_error(e.what());
-  }
+  });
   const auto& c = opt.config;
   const double scans = c.length_m / c.speed_mps * c.lidar_rate_hz, images = c.length_m / c.speed_mps * c.camera_rate_hz;
   // Measured on the defaults: a scan takes about 20 B per ray (points + labels, no-return rays dropped
@@ -99,7 +98,8 @@ void add(CLI::App& root) {
       "and labels) in the RELLIS-3D folder layout. The data are synthetic, not recorded.");
   cmd->add_option("out_dir", opt->out, "Output directory (missing or empty, unless --force)")->required();
   cmd->add_option("--seed", opt->config.seed, "Random seed; the same seed and settings give identical files")
-      ->capture_default_str();
+      ->capture_default_str()
+      ->check(integer_range(0, bounds::kMaxSeed));
   cmd->add_option("--length", opt->config.length_m, "Driven path length in metres (a loop, revisited at its end)")
       ->capture_default_str()
       ->check(finite_range(0, bounds::kMaxSynthLength, true));
@@ -123,7 +123,8 @@ void add(CLI::App& root) {
       ->capture_default_str();
   cmd->add_option("--lidar-columns", opt->config.lidar.columns,
                   "Simulated LiDAR columns per turn (1024; 2048 gives full-size 131k-point OS1-64 scans)")
-      ->capture_default_str();
+      ->capture_default_str()
+      ->check(integer_range(1, bounds::kMaxLidarColumns));
   cmd->add_flag("--keep-no-return", opt->config.keep_no_return,
                 "Write rays without a return as all-zero points, like the real sensor's files");
   cmd->add_option("--rig-translation-error", opt->config.rig_translation_error_m,
@@ -145,8 +146,13 @@ void add(CLI::App& root) {
   cmd->add_flag("--skip-space-check", opt->skip_space_check,
                 "Write even if the estimated size exceeds the free space (the estimate can be wrong on compressing "
                 "file systems; a full disk still fails cleanly, leaving an incomplete sequence)");
-  cmd->parse_complete_callback([opt, cmd] { check_synth_options(*opt, *cmd); });
-  cmd->callback([opt] { run(*opt); });
+  add_option_checks(cmd, [opt, cmd] { check_synth_options(*opt, *cmd); });
+  auto io = std::make_shared<IoOptions>(cmd);
+  io->output_folder("out_dir", opt->out, {}, /*lock=*/true);  // filled for minutes: one run at a time
+  cmd->callback([opt, io] {
+    io->check();
+    run(*opt);
+  });
 }
 
 const RegisterCommand reg{add};

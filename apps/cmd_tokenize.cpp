@@ -5,6 +5,7 @@
 #include <string>
 
 #include "command_registry.hpp"
+#include "option_checks.hpp"
 #include "slamvdb/inference/clip_tokenizer.hpp"
 
 namespace slamvdb::cli::cmd_tokenize {
@@ -25,7 +26,7 @@ void add(CLI::App& root) {
                   "CLIP BPE merge list bpe_simple_vocab_16e6.txt.gz (default: $SLAMVDB_CLIP_VOCAB, else "
                   "../shared/clip/ beside the source tree)");
   cmd->add_option("--context-length", opt->context_length, "Number of ids to print")
-      ->check(CLI::Range(2, 1 << 20));
+      ->check(integer_range(2, 1 << 20));
   cmd->add_flag("--no-truncate", opt->no_truncate, "Fail if the text does not fit, instead of truncating it");
   cmd->add_flag("--json", opt->json, "Print a JSON array instead of space-separated ids");
   cmd->callback([opt] {

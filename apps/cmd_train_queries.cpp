@@ -8,6 +8,7 @@
 
 #include "command_registry.hpp"
 #include "feature_options.hpp"
+#include "io_options.hpp"
 #include "progress.hpp"
 #include "slamvdb/core/error.hpp"
 #include "slamvdb/io/sequence_reader.hpp"
@@ -32,7 +33,6 @@ std::string pct(const std::optional<double>& v) { return v ? fmt::format("{:.2f}
 void run(Options opt) {
   // Everything that can be checked without reading images, before any work.
   check_feature_options(opt.features);
-  check_output_file(opt.output, "--output");
   opt.train.sampling = opt.sampling == "balanced" ? PixelSampling::kClassBalanced : PixelSampling::kUniform;
   opt.train.init = opt.init == "text" ? QueryInit::kText : opt.init == "mean" ? QueryInit::kClassMean : QueryInit::kAuto;
   try {
@@ -120,19 +120,25 @@ void add(CLI::App& root) {
   cmd->add_option("--ontology", opt->ontology, "Ontology YAML file, or a built-in one: rellis3d-coarse, rellis3d-fine")
       ->capture_default_str();
   auto& t = opt->train.trainer;
-  cmd->add_option("--epochs", t.epochs, "Passes over the training pixels")->capture_default_str()->check(kNonNegative);
-  cmd->add_option("--batch-size", t.batch_size, "Pixels per optimiser step")->capture_default_str()->check(kPositive);
+  cmd->add_option("--epochs", t.epochs, "Passes over the training pixels")
+      ->capture_default_str()
+      ->check(integer_range(0, 1'000'000));
+  cmd->add_option("--batch-size", t.batch_size, "Pixels per optimiser step")
+      ->capture_default_str()
+      ->check(integer_range(1, bounds::kMaxCount));
   cmd->add_option("--lr", t.learning_rate, "Adam learning rate")->capture_default_str()->check(kPositive);
   cmd->add_option("--temperature", t.temperature, "Softmax temperature: logits = cosine / T")
       ->capture_default_str()
       ->check(kPositive);
-  cmd->add_option("--seed", t.seed, "Seed for pixel sampling and shuffling (same seed, same vectors)")->capture_default_str();
+  cmd->add_option("--seed", t.seed, "Seed for pixel sampling and shuffling (same seed, same vectors)")
+      ->capture_default_str()
+      ->check(integer_range(0, bounds::kMaxSeed));
   cmd->add_option("--val-fraction", opt->train.val_fraction, "Share of the images (the last ones) used for validation")
       ->capture_default_str()
-      ->check(CLI::Range(0.0, 0.95));
+      ->check(finite_range(0.0, 0.95));
   cmd->add_option("--pixels-per-image", opt->train.pixels_per_image, "Labelled pixels sampled per image")
       ->capture_default_str()
-      ->check(kPositive);
+      ->check(integer_range(1, bounds::kMaxCount));
   cmd->add_option("--sampling", opt->sampling,
                   "Training pixel sampling: 'balanced' (even share per class in each image: more pixels of rare "
                   "classes, better rare-class recall) or 'uniform' (the paper's loss in expectation)")
@@ -147,7 +153,15 @@ void add(CLI::App& root) {
       ->capture_default_str()
       ->check(kPositive);
   add_feature_options(cmd, opt->features, true);
-  cmd->callback([opt] { run(*opt); });
+  auto io = std::make_shared<IoOptions>(cmd);
+  io->input("dataset", opt->dataset);
+  io->input("--ontology", opt->ontology);
+  add_feature_inputs(*io, opt->features);
+  io->output("-o", opt->output);
+  cmd->callback([opt, io] {
+    io->check();
+    run(*opt);
+  });
 #else
   root.add_subcommand("train-queries", "Unavailable: this slamvdb was built without libtorch (SLAMVDB_WITH_TORCH=OFF)")
       ->callback([] { throw Error("train-queries needs libtorch: rebuild with -DSLAMVDB_WITH_TORCH=ON"); });

@@ -10,7 +10,7 @@
 #include "slamvdb/core/error.hpp"
 #include "slamvdb/inference/simulated_encoders.hpp"
 #include "slamvdb/io/map_export.hpp"
-#include "slamvdb/io/atomic_file.hpp"
+#include "slamvdb/core/output_file.hpp"
 #include "slamvdb/io/html_viewer.hpp"
 #include "slamvdb/io/map_pictures.hpp"
 #include "slamvdb/io/nav_grid_files.hpp"
@@ -35,7 +35,7 @@ inline void write_classified_csv(const std::filesystem::path& path, const std::v
     csv.row({fmt::format("{:.3f}", p.x()), fmt::format("{:.3f}", p.y()), fmt::format("{:.3f}", p.z()), name,
              fmt::format("{:.6f}", c.match.score), fmt::format("{:.6f}", c.match.margin), fmt::format("{}", c.count)});
   }
-  write_file_atomically(path, csv.text());
+  write_output_file(path, csv.text());
 }
 
 // The map's occupied voxels in the world, semantic ones coloured by `colour_of(index into cells)`

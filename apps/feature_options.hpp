@@ -6,8 +6,6 @@
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
-#include <unistd.h>
-
 #include <charconv>
 #include <filesystem>
 #include <memory>
@@ -15,6 +13,8 @@
 #include <string>
 #include <vector>
 
+#include "option_checks.hpp"
+#include "io_options.hpp"
 #include "slamvdb/core/error.hpp"
 #include "slamvdb/core/text_escape.hpp"
 #include "slamvdb/inference/simulated_encoders.hpp"
@@ -55,7 +55,8 @@ struct FeatureOptions {
   std::size_t max_images = 0;
 };
 
-inline void add_feature_options(CLI::App* cmd, FeatureOptions& o, bool with_text_model) {
+// with_image_selection: --images / --max-images (commands that go through select_labelled_images).
+inline void add_feature_options(CLI::App* cmd, FeatureOptions& o, bool with_text_model, bool with_image_selection = true) {
   cmd->add_option("--features", o.features,
                   "Where image features come from: 'simulated' (SIMULATED from the 2D label images, no network), "
                   "'model' (a TorchScript dense encoder, --model), 'precomputed' (features/<image>.npy)")
@@ -71,10 +72,16 @@ inline void add_feature_options(CLI::App* cmd, FeatureOptions& o, bool with_text
   cmd->add_option("--features-model-id", o.precomputed_model_id,
                   "With --features precomputed: the model id of the network that wrote the .npy files, so that "
                   "queries and maps from different sequences share it (default: precomputed:<dataset>)");
-  cmd->add_option("--threads", o.threads, "Network threads (-1: the manifest's setting)")->capture_default_str();
-  cmd->add_option("--dim", o.dim, "Simulated embedding dimension")->capture_default_str()->check(CLI::Range(1, 65536));
+  cmd->add_option("--threads", o.threads, "Network threads (-1: the manifest's setting)")
+      ->capture_default_str()
+      ->check(integer_range(-1, bounds::kMaxThreads));
+  cmd->add_option("--dim", o.dim, "Simulated embedding dimension")
+      ->capture_default_str()
+      ->check(integer_range(1, bounds::kMaxDim));
   cmd->add_option("--feature-size", o.feature_size, "Simulated feature map size WIDTHxHEIGHT")->capture_default_str();
-  cmd->add_option("--sim-seed", o.sim_seed, "Seed of the simulated encoder")->capture_default_str();
+  cmd->add_option("--sim-seed", o.sim_seed, "Seed of the simulated encoder")
+      ->capture_default_str()
+      ->check(integer_range(0, bounds::kMaxSeed));
   o.sim_encoder.add_to(cmd);
   if (with_text_model)
     cmd->add_option("--sim-text-gap", o.sim_text_gap,
@@ -83,10 +90,12 @@ inline void add_feature_options(CLI::App* cmd, FeatureOptions& o, bool with_text
                     "(paper Figure 6.3)")
         ->capture_default_str()
         ->check(kNonNegative);
+  if (!with_image_selection) return;
   auto* images = cmd->add_option("--images", o.images,
                                  "Use the labelled images FIRST:LAST (0-based, inclusive, in time order)");
   cmd->add_option("--max-images", o.max_images, "Use only the first N labelled images (0: all)")
       ->capture_default_str()
+      ->check(integer_range(0, bounds::kMaxCount))
       ->excludes(images);
 }
 
@@ -98,9 +107,7 @@ inline void check_feature_options(const FeatureOptions& o) {
     throw CLI::ValidationError("--model", "is only used with --features model");
   if (!o.precomputed_model_id.empty() && o.features != "precomputed")
     throw CLI::ValidationError("--features-model-id", "is only used with --features precomputed");
-  static const std::regex kSize(R"((\d{1,5})[xX](\d{1,5}))");
-  if (!std::regex_match(o.feature_size, kSize) || o.feature_size.starts_with('0'))
-    throw CLI::ValidationError("--feature-size", fmt::format("'{}' is not WIDTHxHEIGHT", o.feature_size));
+  if (o.features == "simulated") check_simulated_feature_size(o.feature_size, o.dim, 4);  // fp32 feature maps
   if (!o.images.empty()) {
     static const std::regex kRange(R"((\d{1,9}):(\d{1,9}))");
     std::smatch m;
@@ -180,18 +187,10 @@ inline std::vector<ImageRecord> select_labelled_images(const Sequence& seq, cons
   return labelled;
 }
 
-// Usage error (exit 2) unless `file` can be created: its directory exists and is writable.
-inline void check_output_file(const std::filesystem::path& file, const char* option) {
-  namespace fs = std::filesystem;
-  const fs::path dir = file.has_parent_path() ? file.parent_path() : fs::path(".");
-  if (!fs::is_directory(dir))
-    throw CLI::ValidationError(option, fmt::format("directory {} does not exist", dir.string()));
-  if (fs::is_directory(file)) throw CLI::ValidationError(option, fmt::format("{} is a directory", file.string()));
-  const fs::path probe = dir / fmt::format(".slamvdb-write-test-{}", ::getpid());
-  std::FILE* f = std::fopen(probe.c_str(), "w");
-  if (!f) throw CLI::ValidationError(option, fmt::format("cannot write into {}", dir.string()));
-  std::fclose(f);
-  fs::remove(probe);
+// The model files of the feature options, as inputs of the command (io_options.hpp).
+inline void add_feature_inputs(IoOptions& io, const FeatureOptions& o) {
+  io.input("--model", o.model);
+  io.input("--text-model", o.text_model);
 }
 
 }  // namespace slamvdb::cli

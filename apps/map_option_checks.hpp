@@ -1,16 +1,17 @@
 #pragma once
-// Checks of `slamvdb map` that involve several options, run once all options are parsed and
-// before the sequence is read: a bad combination is a usage error (exit code 2) naming the options.
+// Checks of the mapping commands (`map`, `slam`) that involve several options, run once all options
+// are read (command line and --config) and before the sequence is: a bad combination, or one that
+// cannot fit in memory, is a usage error (exit code 2) naming the options.
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 #include <unistd.h>
 
 #include <array>
 #include <filesystem>
-#include <regex>
 #include <sstream>
 #include <string>
 
+#include "memory_checks.hpp"
 #include "option_checks.hpp"
 #include "slamvdb/core/error.hpp"
 #include "slamvdb/pipeline/mapping_pipeline.hpp"
@@ -35,11 +36,19 @@ inline std::array<double, 5> parse_distortion_option(const std::string& text) {
   return d;
 }
 
-// sim_feature_precision: the simulated encoder's output values, "fp32" or "fp16" (their size bounds
-// a feature map's bytes).
-inline void check_map_options(const PipelineOptions& p, const std::string& features, const std::string& feature_size,
-                              const std::string& sim_feature_precision, const std::string& precision,
-                              const std::string& distortion, const std::string& output) {
+// What a mapping command (map, slam) was asked for beyond PipelineOptions, as given.
+struct MappingChoices {
+  std::string features = "simulated";  // simulated, model, precomputed or none
+  std::string feature_size = "192x128";
+  std::string sim_feature_precision = "fp32";  // the simulated encoder's output values (their size bounds a feature map)
+  std::string precision = "fp16";              // embeddings at rest
+  std::string distortion;
+  double max_memory_gb = 0;  // 0: the memory available on this machine
+};
+
+// The checks every mapping command shares (map, slam; `p.map.semantic.dim` is the embedding
+// dimension), once all options are read: usage errors (exit code 2) naming the options.
+inline void check_map_options(const PipelineOptions& p, const MappingChoices& c) {
   const auto& occ = p.map.occupancy;
   if (!(occ.min_point_range < occ.max_point_range))
     usage_error(fmt::format("--min-range {} must be below --max-range {}", occ.min_point_range, occ.max_point_range));
@@ -55,33 +64,27 @@ inline void check_map_options(const PipelineOptions& p, const std::string& featu
     usage_error(fmt::format("--max-depth {} m is {:.0f} voxels of --voxel-size {} m; fusion looks at most {:.0f} voxels "
                             "far (lower the depth or raise the voxel size)",
                             p.fusion.max_depth, p.fusion.max_depth / occ.voxel_size, occ.voxel_size, kMaxRangeInVoxels));
-  if (!distortion.empty()) parse_distortion_option(distortion);
-  if (features == "simulated") {
-    static const std::regex kSize(R"((\d{1,5})[xX](\d{1,5}))");
-    std::smatch m;
-    if (!std::regex_match(feature_size, m, kSize))
-      usage_error(fmt::format("--feature-size '{}' is not WIDTHxHEIGHT", feature_size));
-    const int w = std::stoi(m[1]), h = std::stoi(m[2]);
-    if (w < 1 || h < 1 || w > bounds::kMaxFeatureSide || h > bounds::kMaxFeatureSide)
-      usage_error(fmt::format("--feature-size {}: each side must be in [1, {}]", feature_size, bounds::kMaxFeatureSide));
-    const double bytes = (sim_feature_precision == "fp16" ? 2.0 : 4.0) * w * h * p.map.semantic.dim;
-    if (bytes > bounds::kMaxFeatureMapBytes)
-      usage_error(fmt::format("--feature-size {} with --dim {} makes {:.0f} MB feature maps; at most {:.0f} MB",
-                              feature_size, p.map.semantic.dim, bytes / 1e6, bounds::kMaxFeatureMapBytes / 1e6));
-  }
-  // The output location is checked now, not after the whole replay.
-  const std::filesystem::path dir = std::filesystem::absolute(output).parent_path();
-  std::error_code ec;
-  if (!std::filesystem::is_directory(dir, ec))
-    throw Error(fmt::format("-o {}: directory {} does not exist", output, dir.string()));
-  if (::access(dir.c_str(), W_OK) != 0)
-    throw Error(fmt::format("-o {}: directory {} is not writable", output, dir.string()));
+  if (p.map.semantic.dim < 1 || p.map.semantic.dim > bounds::kMaxDim)
+    usage_error(fmt::format("--dim {}: expected an integer in [1, {}]", p.map.semantic.dim, bounds::kMaxDim));
+  if (!c.distortion.empty()) parse_distortion_option(c.distortion);
+  if (c.features == "simulated")
+    check_simulated_feature_size(c.feature_size, p.map.semantic.dim, c.sim_feature_precision == "fp16" ? 2 : 4);
+  check_scan_memory(occ, c.features == "none" ? 0 : p.map.semantic.dim, c.max_memory_gb);
   if (occ.voxel_size < 0.1) {
-    const int value_bytes = precision == "fp32" ? 4 : 2;
+    const int value_bytes = c.precision == "fp32" ? 4 : 2;
     spdlog::warn("--voxel-size {} m: expect roughly {:.0f} MB of map memory per 100 m driven (about 50 MB at 0.25 m; "
                  "memory grows like voxel size^-2.3)",
                  occ.voxel_size, estimated_map_megabytes_per_100m(occ.voxel_size, p.map.semantic.dim, value_bytes));
   }
+}
+
+// --max-memory of the mapping commands.
+inline void add_max_memory_option(CLI::App* cmd, double& max_memory_gb) {
+  cmd->add_option("--max-memory", max_memory_gb,
+                  "Refuse to start when one LiDAR scan is estimated to need more memory than this (GB); 0: the memory "
+                  "available on this machine (MemAvailable, or less under a cgroup limit)")
+      ->capture_default_str()
+      ->check(finite_range(0, 1e6));
 }
 
 }  // namespace slamvdb::cli

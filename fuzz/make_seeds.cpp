@@ -6,6 +6,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <string>
@@ -17,6 +18,10 @@
 #include "slamvdb/store/map_store.hpp"
 
 namespace fs = std::filesystem;
+
+// ros_seeds.cpp: the ROS message and ROS 1 bag seeds.
+void write_ros_seeds(const std::function<void(const std::string&, const std::string&, const std::string&)>& seed);
+void write_recording_seeds(const fs::path& out_dir);  // make_seeds_recording.cpp
 
 namespace {
 
@@ -155,8 +160,11 @@ int main(int argc, char** argv) {
   seed("map_file", "v2", file_bytes(out_dir / "seed.svdb.tmp"));
   fs::remove(out_dir / "seed.svdb.tmp");
 
+  write_ros_seeds(seed);
+
   seed("file_names", "rellis", "frame000104-1581624663_149");
   seed("file_names", "escape", "model\x1b[2J\xc2\x9b\xe2\x80\xae\xff");
+  write_recording_seeds(out_dir);
   std::printf("seeds written to %s\n", out_dir.c_str());
   return 0;
 }

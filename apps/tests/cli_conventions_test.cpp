@@ -69,7 +69,7 @@ TEST(CliConventions, ConfigFileSetsOptionsAndTheCommandLineWins) {
   EXPECT_NE(wins.output.find("path length 3."), std::string::npos) << wins.output;
   const auto typo = run_command(kCli + " synth " + seq + " --config " + write("typo.yaml", "lenght: 2\n") + " 2>&1");
   EXPECT_EQ(typo.exit_code, 2);
-  EXPECT_NE(typo.output.find("'synth.lenght' is not an option"), std::string::npos) << typo.output;
+  EXPECT_NE(typo.output.find("'lenght' is not an option of `synth`"), std::string::npos) << typo.output;
   const auto bad = run_command(kCli + " synth " + seq + " --config " + write("bad.yaml", "length: nan\n") + " 2>&1");
   EXPECT_EQ(bad.exit_code, 2) << bad.output;
   const auto broken = run_command(kCli + " synth " + seq + " --config " + write("broken.yaml", "length: [2\n") + " 2>&1");

@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include "map_option_checks.hpp"
+#include "memory_checks.hpp"
 
 namespace slamvdb::cli {
 namespace {
@@ -23,8 +24,15 @@ TEST(OptionChecks, FiniteRangeRefusesNanInfAndOutOfRange) {
 
 TEST(OptionChecks, IntegerRangeRefusesFractionsAndOutOfRange) {
   const CLI::Validator v = integer_range(-1, 256);
-  for (const char* good : {"-1", "0", "256"}) EXPECT_EQ(check(v, good), "") << good;
-  for (const char* bad : {"-2", "257", "1.5", "1e3", "nan", "", "99999999999999999999"}) EXPECT_NE(check(v, bad), "") << bad;
+  for (const char* good : {"-1", "0", "256", "+7", "-0"}) EXPECT_EQ(check(v, good), "") << good;
+  for (const char* bad : {"-2", "257", "1.5", "1e3", "nan", "", "99999999999999999999", "0x10", "010", " 5", "5 ", "--1"})
+    EXPECT_NE(check(v, bad), "") << bad;
+  // strtoull, which CLI11 uses, wraps "-1" and saturates an overflow: both are refused before it.
+  const CLI::Validator seeds = integer_range(0, bounds::kMaxSeed);
+  for (const char* bad : {"-1", "18446744073709551615", "9223372036854775808", "1e23"}) EXPECT_NE(check(seeds, bad), "") << bad;
+  EXPECT_EQ(check(seeds, "9223372036854775807"), "");
+  EXPECT_NE(check(v, "1e3").find("not an integer"), std::string::npos);
+  EXPECT_NE(check(v, "010").find("leading zeros"), std::string::npos);
 }
 
 TEST(OptionChecks, DistortionNeedsFiveFiniteNumbers) {
@@ -35,8 +43,12 @@ TEST(OptionChecks, DistortionNeedsFiveFiniteNumbers) {
 
 TEST(OptionChecks, MapOptionCombinationsAreBounded) {
   PipelineOptions p;
+  MappingChoices c;
+  c.max_memory_gb = 1e6;  // the machine's memory is another test's subject
   const auto run = [&](const std::string& feature_size = "192x128", const std::string& sim_precision = "fp32") {
-    check_map_options(p, "simulated", feature_size, sim_precision, "fp16", "", "/tmp/map.svdb");
+    c.feature_size = feature_size;
+    c.sim_feature_precision = sim_precision;
+    check_map_options(p, c);
   };
   EXPECT_NO_THROW(run());
   p.map.occupancy.voxel_size = 0.01;  // 25 m clearing = 2500 voxels per ray: allowed
@@ -52,7 +64,31 @@ TEST(OptionChecks, MapOptionCombinationsAreBounded) {
   EXPECT_THROW(run("1920x1200"), CLI::ValidationError);  // 4.7 GB of 512-d features
   EXPECT_THROW(run("1024x768"), CLI::ValidationError);    // 1.6 GB in fp32,
   EXPECT_NO_THROW(run("1024x768", "fp16"));               // 0.8 GB in fp16
-  EXPECT_THROW(check_map_options(p, "simulated", "192x128", "fp32", "fp16", "", "/no/such/dir/map.svdb"), Error);
+  p.map.semantic.dim = 65536;                             // beyond any embedding
+  EXPECT_THROW(run("8x8"), CLI::ValidationError);
+}
+
+// One scan at 0.01 m takes tens of GB: refused with the estimate, whatever the machine, unless
+// --max-memory allows it; the defaults pass on any machine.
+TEST(OptionChecks, MappingMemoryIsEstimatedAndBounded) {
+  OccupancyParams occ;
+  EXPECT_LT(estimate_scan_memory(occ, 512).total_bytes(), 0.5e9);
+  EXPECT_NO_THROW(check_scan_memory(occ, 512, 0));  // 0: the machine's available memory
+  occ.voxel_size = 0.01;
+  EXPECT_GT(estimate_scan_memory(occ, 512).occupancy_bytes, 20e9);
+  try {
+    check_scan_memory(occ, 512, 16);
+    ADD_FAILURE() << "0.01 m voxels fit in 16 GB?";
+  } catch (const CLI::ValidationError& e) {
+    const std::string m = e.what();
+    EXPECT_NE(m.find("--voxel-size 0.01"), std::string::npos) << m;
+    EXPECT_NE(m.find("GB"), std::string::npos) << m;
+    EXPECT_NE(m.find("16.0 GB of --max-memory"), std::string::npos) << m;
+  }
+  EXPECT_NO_THROW(check_scan_memory(occ, 512, 1000));
+  occ.max_clearing_range = 2;  // clearing less of each ray is what makes small voxels possible
+  EXPECT_LT(estimate_scan_memory(occ, 512).occupancy_bytes, 0.2e9);
+  EXPECT_GT(available_memory_bytes(), 0.0);
 }
 
 TEST(OptionChecks, MemoryEstimateFollowsTheMeasurement) {

@@ -7,6 +7,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "slamvdb/core/error.hpp"
+#include "slamvdb/core/output_file.hpp"
 
 namespace slamvdb {
 namespace {
@@ -91,13 +92,15 @@ cv::Mat render_confusion_matrix(const ConfusionMatrix& m, const std::string& tit
 
 void write_confusion_png(const std::filesystem::path& file, const ConfusionMatrix& matrix, const std::string& title) {
   const cv::Mat img = render_confusion_matrix(matrix, title);
-  bool ok = false;
+  // Encoded in memory and written by the one output writer (any path: a device too), not by
+  // cv::imwrite, which neither says why a write failed nor writes atomically.
+  std::vector<uchar> png;
   try {
-    ok = cv::imwrite(file.string(), img);
+    if (!cv::imencode(".png", img, png)) throw Error(fmt::format("cannot encode {} as PNG", file.string()));
   } catch (const cv::Exception& e) {
-    throw Error(fmt::format("cannot write {}: {}", file.string(), e.what()));
+    throw Error(fmt::format("cannot encode {} as PNG: {}", file.string(), e.what()));
   }
-  if (!ok) throw Error(fmt::format("cannot write {}", file.string()));
+  write_output_file(file, std::string_view(reinterpret_cast<const char*>(png.data()), png.size()));
 }
 
 }  // namespace slamvdb

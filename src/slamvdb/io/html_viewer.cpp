@@ -8,7 +8,7 @@
 #include <string_view>
 
 #include "slamvdb/core/error.hpp"
-#include "slamvdb/io/atomic_file.hpp"
+#include "slamvdb/core/output_file.hpp"
 
 namespace slamvdb {
 namespace {
@@ -122,7 +122,7 @@ void write_html_viewer(const std::filesystem::path& path, const HtmlViewerScene&
   page += "</script>\n<script>\n";
   page += kViewerScript;
   page += "\n</script>\n</body>\n</html>\n";
-  write_file_atomically(path, page);
+  write_output_file(path, page);
 }
 
 }  // namespace slamvdb

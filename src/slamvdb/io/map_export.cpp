@@ -2,7 +2,7 @@
 
 #include <sstream>
 
-#include "slamvdb/io/atomic_file.hpp"
+#include "slamvdb/core/output_file.hpp"
 #include "slamvdb/io/map_pictures.hpp"
 #include "slamvdb/io/npy.hpp"
 
@@ -141,9 +141,9 @@ std::vector<ColouredVoxel> colour_by_pca(const SemanticMap& map, const ColourBas
   return colour_occupied_voxels(map, [&](const float* e) { return pca.colour(e); });
 }
 
-void write_ply(const fs::path& path, const std::vector<ColouredVoxel>& voxels, PlyEncoding encoding,
+std::uint64_t write_ply(const fs::path& path, const std::vector<ColouredVoxel>& voxels, PlyEncoding encoding,
                const ExportProgress& progress) {
-  AtomicFile file(path);
+  OutputFile file(path);
   std::ostringstream out;
   const bool ascii = encoding == PlyEncoding::kAscii;
   out << "ply\nformat " << (ascii ? "ascii" : "binary_little_endian") << " 1.0\n"
@@ -152,6 +152,7 @@ void write_ply(const fs::path& path, const std::vector<ColouredVoxel>& voxels, P
       << "property float x\nproperty float y\nproperty float z\n"
       << "property uchar red\nproperty uchar green\nproperty uchar blue\n"
       << "property int count\nend_header\n";
+  std::uint64_t bytes = out.str().size();
   file.write(out.str());
   constexpr std::size_t kBatch = 65536;
   constexpr std::size_t kVertexBytes = 3 * sizeof(float) + 3 + sizeof(uint32_t);
@@ -174,9 +175,11 @@ void write_ply(const fs::path& path, const std::vector<ColouredVoxel>& voxels, P
       }
     }
     file.write(buffer);
+    bytes += buffer.size();
     if (progress) progress(end, voxels.size());
   }
   file.commit();
+  return bytes;
 }
 
 void write_pcd_voxels(const fs::path& path, const std::vector<ColouredVoxel>& voxels) {
@@ -197,7 +200,7 @@ void write_pcd_voxels(const fs::path& path, const std::vector<ColouredVoxel>& vo
     std::memcpy(p + 12, &rgb, 4);
     std::memcpy(p + 16, &count, 4);
   }
-  write_file_atomically(path, bytes);
+  write_output_file(path, bytes);
 }
 
 std::size_t write_embeddings_npy(const fs::path& npy, const SemanticMap& map) {
@@ -217,12 +220,17 @@ std::size_t write_embeddings_npy(const fs::path& npy, const SemanticMap& map) {
     }
   });
   const std::size_t n = counts.size();
+  const std::vector<fs::path> files = embeddings_npy_files(npy);
+  write_npy_array(files[0], embeddings.data(), {n, dim});
+  write_npy_array(files[1], positions.data(), {n, 3});
+  write_npy_array(files[2], counts.data(), {n}, NpyDtype::kInt32);
+  return n;
+}
+
+std::vector<fs::path> embeddings_npy_files(const fs::path& npy) {
   fs::path base = npy;
   base.replace_extension();
-  write_npy_array(npy, embeddings.data(), {n, dim});
-  write_npy_array(base.string() + ".positions.npy", positions.data(), {n, 3});
-  write_npy_array(base.string() + ".counts.npy", counts.data(), {n}, NpyDtype::kInt32);
-  return n;
+  return {npy, base.string() + ".positions.npy", base.string() + ".counts.npy"};
 }
 
 Eigen::Vector2i BirdsEyeImage::pixel_of(double x, double y) const {

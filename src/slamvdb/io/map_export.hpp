@@ -47,8 +47,9 @@ using ExportProgress = std::function<void(std::size_t done, std::size_t total)>;
 
 enum class PlyEncoding { kBinaryLittleEndian, kAscii };
 // One vertex per voxel: float x y z, uchar red green blue, int count (int32: Open3D's tensor reader
-// drops unsigned properties), written atomically. Throws Error on I/O failure.
-void write_ply(const std::filesystem::path& path, const std::vector<ColouredVoxel>& voxels, PlyEncoding encoding,
+// drops unsigned properties), written atomically (core/output_file.hpp). Returns the bytes written;
+// throws Error on I/O failure.
+std::uint64_t write_ply(const std::filesystem::path& path, const std::vector<ColouredVoxel>& voxels, PlyEncoding encoding,
                const ExportProgress& progress = {});
 
 // The same voxels as a PCL point cloud: binary PCD v0.7, FIELDS x y z rgb count (rgb packed as
@@ -59,6 +60,8 @@ void write_pcd_voxels(const std::filesystem::path& path, const std::vector<Colou
 // embeddings, decoded), PREFIX.positions.npy (N x 3 float32 world cell centres),
 // PREFIX.counts.npy (N int32), rows in key order. Returns N.
 std::size_t write_embeddings_npy(const std::filesystem::path& npy, const SemanticMap& map);
+// The three files write_embeddings_npy writes for `npy`.
+std::vector<std::filesystem::path> embeddings_npy_files(const std::filesystem::path& npy);
 
 struct BirdsEyeParams {
   double resolution = 0.0;    // metres per pixel; 0: the voxel size, coarser if needed for max_auto_pixels

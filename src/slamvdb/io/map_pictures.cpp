@@ -8,7 +8,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "slamvdb/core/error.hpp"
-#include "slamvdb/io/atomic_file.hpp"
+#include "slamvdb/core/output_file.hpp"
 
 namespace slamvdb {
 namespace {
@@ -149,13 +149,17 @@ void write_image_atomically(const std::filesystem::path& path, const cv::Mat& im
   if (image.channels() == 3) cv::cvtColor(image, out, cv::COLOR_RGB2BGR);
   std::vector<uint8_t> bytes;
   if (!cv::imencode(extension, out, bytes)) throw Error(fmt::format("cannot encode {}", path.string()));
-  write_file_atomically(path, std::string_view(reinterpret_cast<const char*>(bytes.data()), bytes.size()));
+  write_output_file(path, std::string_view(reinterpret_cast<const char*>(bytes.data()), bytes.size()));
+}
+
+std::filesystem::path map_server_yaml_path(const std::filesystem::path& png) {
+  return std::filesystem::path(png).replace_extension(".yaml");
 }
 
 void write_png_with_yaml(const std::filesystem::path& png, const BirdsEyeImage& image) {
   write_image_atomically(png, image.rgb);
-  const std::filesystem::path yaml = std::filesystem::path(png).replace_extension(".yaml");
-  write_file_atomically(yaml, map_server_yaml(png.filename().string(), image.resolution, image.min_xy));
+  const std::filesystem::path yaml = map_server_yaml_path(png);
+  write_output_file(yaml, map_server_yaml(png.filename().string(), image.resolution, image.min_xy));
 }
 
 }  // namespace slamvdb

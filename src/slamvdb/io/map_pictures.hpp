@@ -35,6 +35,8 @@ void annotate(BirdsEyeImage& image, const PictureAnnotations& annotations);
 // PNG written atomically (encoded in memory first), and `<png stem>.yaml` beside it in the
 // map_server form: image, mode, resolution, origin [x, y, yaw], negate, occupied/free thresholds.
 void write_png_with_yaml(const std::filesystem::path& png, const BirdsEyeImage& image);
+// The YAML written beside `png`.
+std::filesystem::path map_server_yaml_path(const std::filesystem::path& png);
 // The YAML text for an image file of the given resolution and lower-left world corner.
 std::string map_server_yaml(const std::string& image_file, double resolution, const Eigen::Vector2d& origin,
                             const std::string& mode = "trinary");

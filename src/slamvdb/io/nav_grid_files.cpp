@@ -5,15 +5,19 @@
 #include <opencv2/core.hpp>
 
 #include "slamvdb/core/error.hpp"
-#include "slamvdb/io/atomic_file.hpp"
+#include "slamvdb/core/output_file.hpp"
 
 namespace slamvdb {
+
+NavGridFiles nav_grid_files(const std::filesystem::path& prefix) {
+  return {prefix.string() + ".pgm", prefix.string() + ".yaml", prefix.string() + ".png"};
+}
 
 NavGridFiles write_nav_grid(const std::filesystem::path& prefix, const NavGrid& grid,
                             const std::vector<std::string>& class_names, const std::vector<Rgb>& class_colours,
                             const std::vector<Eigen::Vector2d>& trajectory) {
   if (grid.width <= 0 || grid.height <= 0) throw Error("the navigation grid is empty");
-  NavGridFiles files{prefix.string() + ".pgm", prefix.string() + ".yaml", prefix.string() + ".png"};
+  const NavGridFiles files = nav_grid_files(prefix);
   // Image rows run north to south; grid rows south to north.
   cv::Mat pgm(grid.height, grid.width, CV_8UC1);
   BirdsEyeImage picture;
@@ -37,7 +41,7 @@ NavGridFiles write_nav_grid(const std::filesystem::path& prefix, const NavGrid& 
       picture.rgb.at<cv::Vec3b>(image_row, col) = {c[0], c[1], c[2]};
     }
   write_image_atomically(files.pgm, pgm);
-  write_file_atomically(files.yaml, map_server_yaml(files.pgm.filename().string(), grid.resolution, grid.origin, "raw"));
+  write_output_file(files.yaml, map_server_yaml(files.pgm.filename().string(), grid.resolution, grid.origin, "raw"));
 
   PictureAnnotations notes;
   notes.title = "navigation grid";

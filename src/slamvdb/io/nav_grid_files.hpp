@@ -15,6 +15,9 @@ struct NavGridFiles {
   std::filesystem::path pgm, yaml, png;
 };
 
+// The files of a grid written with `prefix` (PREFIX.pgm, .yaml, .png).
+NavGridFiles nav_grid_files(const std::filesystem::path& prefix);
+
 // class_names / class_colours: of the query set the grid was classified with.
 NavGridFiles write_nav_grid(const std::filesystem::path& prefix, const NavGrid& grid,
                             const std::vector<std::string>& class_names, const std::vector<Rgb>& class_colours,

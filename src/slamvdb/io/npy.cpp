@@ -23,7 +23,7 @@
 #include "slamvdb/core/half.hpp"
 #include "slamvdb/core/regular_file.hpp"
 #include "slamvdb/core/text_escape.hpp"
-#include "slamvdb/io/atomic_file.hpp"
+#include "slamvdb/core/output_file.hpp"
 
 namespace slamvdb {
 
@@ -257,7 +257,7 @@ void write_npy_array(const std::filesystem::path& path, const void* data, const 
   header.append((64 - unpadded % 64) % 64, ' ');
   header.push_back('\n');
 
-  AtomicFile out(path);  // a failed write (full disk, ...) leaves no partial .npy
+  OutputFile out(path);  // a failed write (full disk, ...) leaves no partial .npy
   out.write(kMagic, kMagicSize);
   const unsigned char version_and_len[4] = {1, 0, static_cast<unsigned char>(header.size() & 0xff),
                                             static_cast<unsigned char>(header.size() >> 8)};

@@ -21,9 +21,9 @@ FeatureMap read_feature_npy(const std::filesystem::path& path);
 // a fresh 50 MB buffer each time (that costs as much as the transpose).
 void read_feature_npy(const std::filesystem::path& path, FeatureMap& map);
 
-// Writes the map as a C x H x W float32 array (an fp16 map widened, exactly). Writes are atomic
-// (io/atomic_file.hpp): a failure leaves no partial file, and an existing file is replaced only by
-// a complete one.
+// Writes the map as a C x H x W float32 array (an fp16 map widened, exactly), through the one
+// output writer (core/output_file.hpp): a failure leaves no partial file, and an existing file is
+// replaced only by a complete one.
 void write_feature_npy(const std::filesystem::path& path, const FeatureMap& map);
 
 // Vectors from a float32 or float16 array of shape (dim,) or (n, dim): one row per vector (query

@@ -14,6 +14,7 @@
 
 #include "slamvdb/core/error.hpp"
 #include "slamvdb/core/regular_file.hpp"
+#include "slamvdb/core/output_file.hpp"
 
 namespace slamvdb {
 
@@ -304,8 +305,7 @@ void write_pcd(const fs::path& file, const PcdCloud& cloud, PcdEncoding encoding
       "# .PCD v0.7 - Point Cloud Data file format\nVERSION 0.7\nFIELDS {}\nSIZE{}\nTYPE{}\nCOUNT{}\nWIDTH {}\n"
       "HEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS {}\nDATA {}\n",
       fields, repeat(" 4"), repeat(" F"), repeat(" 1"), n, n, data);
-  std::ofstream out(file, std::ios::binary);
-  if (!out) throw Error(fmt::format("cannot write {}", file));
+  std::ostringstream out(std::ios::binary);  // written whole by the one output writer
   out << header;
   if (encoding == PcdEncoding::kAscii) {
     for (std::size_t i = 0; i < n; ++i) {
@@ -330,7 +330,7 @@ void write_pcd(const fs::path& file, const PcdCloud& cloud, PcdEncoding encoding
     out.write(reinterpret_cast<const char*>(sizes), sizeof sizes);
     out.write(reinterpret_cast<const char*>(packed.data()), size);
   }
-  if (!out) throw Error(fmt::format("cannot write {}", file));
+  write_output_file(file, std::move(out).str());
 }
 
 }  // namespace slamvdb

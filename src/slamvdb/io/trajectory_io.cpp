@@ -4,8 +4,10 @@
 #include <fmt/std.h>
 
 #include <fstream>
+#include <iterator>
 
 #include "slamvdb/core/error.hpp"
+#include "slamvdb/core/output_file.hpp"
 #include "slamvdb/io/sequence_reader.hpp"
 
 namespace slamvdb {
@@ -61,23 +63,22 @@ void write_trajectory(const std::filesystem::path& file, const std::vector<doubl
                       const std::vector<Pose>& poses, PoseFormat format) {
   if (stamps.size() != poses.size())
     throw Error(fmt::format("cannot write {}: {} stamps for {} poses", file, stamps.size(), poses.size()));
-  std::ofstream out(file);
-  if (!out) throw Error(fmt::format("cannot write {}", file));
+  std::string text;
   for (std::size_t i = 0; i < poses.size(); ++i) {
     const Pose& T = poses[i];
     if (format == PoseFormat::kKitti) {
       const Eigen::Matrix<double, 3, 4> M = T.matrix().topRows<3>();
       for (int r = 0; r < 3; ++r)
-        for (int c = 0; c < 4; ++c) out << fmt::format("{}{:.9e}", r + c == 0 ? "" : " ", M(r, c));
-      out << '\n';
+        for (int c = 0; c < 4; ++c) fmt::format_to(std::back_inserter(text), "{}{:.9e}", r + c == 0 ? "" : " ", M(r, c));
+      text += '\n';
     } else {
       const Eigen::Quaterniond q(T.linear());
       const Vec3d t = T.translation();
-      out << fmt::format("{:.9f} {:.9f} {:.9f} {:.9f} {:.9f} {:.9f} {:.9f} {:.9f}\n", stamps[i], t.x(), t.y(), t.z(),
-                         q.x(), q.y(), q.z(), q.w());
+      fmt::format_to(std::back_inserter(text), "{:.9f} {:.9f} {:.9f} {:.9f} {:.9f} {:.9f} {:.9f} {:.9f}\n", stamps[i],
+                     t.x(), t.y(), t.z(), q.x(), q.y(), q.z(), q.w());
     }
   }
-  if (!out) throw Error(fmt::format("cannot write {}", file));
+  write_output_file(file, text);
 }
 
 }  // namespace slamvdb

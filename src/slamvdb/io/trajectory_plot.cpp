@@ -8,6 +8,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "slamvdb/core/error.hpp"
+#include "slamvdb/core/output_file.hpp"
 
 namespace slamvdb {
 
@@ -61,13 +62,14 @@ void write_trajectory_plot(const std::filesystem::path& png, const std::vector<P
   cv::line(image, origin, origin + cv::Point(bar_px, 0), cv::Scalar(0, 0, 0), 2);
   cv::putText(image, fmt::format("{:g} m", bar), origin + cv::Point(0, -8), cv::FONT_HERSHEY_SIMPLEX, 0.55,
               cv::Scalar(0, 0, 0), 1, cv::LINE_AA);
-  bool ok = false;
+  // Encoded in memory and written by the one output writer (core/output_file.hpp).
+  std::vector<uchar> bytes;
   try {
-    ok = cv::imwrite(png.string(), image);
+    if (!cv::imencode(".png", image, bytes)) throw Error(fmt::format("cannot encode {} as PNG", png));
   } catch (const cv::Exception& e) {
-    throw Error(fmt::format("cannot write {}: {}", png, e.what()));
+    throw Error(fmt::format("cannot encode {} as PNG: {}", png, e.what()));
   }
-  if (!ok) throw Error(fmt::format("cannot write {}", png));
+  write_output_file(png, std::string_view(reinterpret_cast<const char*>(bytes.data()), bytes.size()));
 }
 
 }  // namespace slamvdb

@@ -10,6 +10,7 @@
 #include <sstream>
 
 #include "slamvdb/core/error.hpp"
+#include "slamvdb/core/output_file.hpp"
 #include "slamvdb/query/query_set.hpp"
 
 namespace slamvdb {
@@ -29,21 +30,8 @@ std::string read_text(const fs::path& file, std::string_view what) {
   return text.str();
 }
 
-// Writes beside the target and renames, so an interrupted save never leaves half a file.
-void write_text(const fs::path& file, const std::string& text) {
-  const fs::path tmp = file.string() + ".tmp";
-  {
-    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
-    if (!out || !out.write(text.data(), static_cast<std::streamsize>(text.size())) || !out.flush())
-      throw Error(fmt::format("cannot write {}", file.string()));
-  }
-  std::error_code ec;
-  fs::rename(tmp, file, ec);
-  if (ec) {
-    fs::remove(tmp, ec);
-    throw Error(fmt::format("cannot write {}: {}", file.string(), ec.message()));
-  }
-}
+// Through the one output writer: an interrupted save never leaves half a file.
+void write_text(const fs::path& file, const std::string& text) { write_output_file(file, text); }
 
 json provenance_json(const QueryProvenance& p) {
   json j = json::object();

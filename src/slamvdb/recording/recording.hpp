@@ -11,14 +11,17 @@
 #include <set>
 #include <span>
 #include <string>
+#include <string_view>
 #include <vector>
 
 namespace slamvdb::recording {
 
 // How a message's bytes are laid out: ROS 1 serialization (little-endian, packed, uint32 length
 // prefixes) or OMG CDR as ROS 2 writes it (a 4-byte encapsulation header selecting little- or
-// big-endian, natural alignment relative to the end of that header).
-enum class Serialization { kRos1, kCdr };
+// big-endian, natural alignment relative to the end of that header). kOther: a channel of a
+// recording that is neither (an MCAP channel in json, protobuf, ...): listed, its messages delivered
+// like any other, for the user to skip and count (Channel::encoding says which it is).
+enum class Serialization { kRos1, kCdr, kOther };
 
 // One topic of a recording (a ROS 1 connection, a rosbag2 topic, an MCAP channel + schema).
 struct Channel {
@@ -28,13 +31,17 @@ struct Channel {
   // is normalised to it, so that decoders are chosen by one name whatever the container.
   std::string type;
   Serialization serialization = Serialization::kRos1;
+  // The container's name for the serialization: "ros1", "cdr", or e.g. "json" / "protobuf" (kOther).
+  std::string encoding;
   std::string definition;  // the message definition text the recording carries (may be empty)
-  // Messages on this channel according to the recording's index or summary; nullopt when the
-  // recording has none (an unindexed bag, an MCAP without summary: known only after reading).
+  // Messages on this channel according to the recording's index or summary (or a first pass over
+  // a recording without one, when the reader makes it: an MCAP without summary); nullopt when not
+  // known before reading (an unindexed bag).
   std::optional<std::uint64_t> message_count;
 };
 
-// One message. `data` stays valid until the next call to RecordingReader::next().
+// One message. `data` stays valid until the next call to RecordingReader::next() (select() does not
+// invalidate it).
 struct Message {
   const Channel* channel = nullptr;
   std::int64_t log_time_ns = 0;  // when it was recorded (ns since the Unix epoch)
@@ -79,5 +86,9 @@ bool is_recording(const std::filesystem::path& path);
 // Opens the recording at `path` (any of the forms is_recording accepts). Throws Error naming the
 // path when it is none of them or cannot be opened.
 std::unique_ptr<RecordingReader> open_recording(const std::filesystem::path& path);
+
+// A ROS 2 type name in ROS 1 form: "sensor_msgs/msg/PointCloud2" (and IDL's
+// "sensor_msgs::msg::PointCloud2") -> "sensor_msgs/PointCloud2"; other names unchanged.
+std::string ros1_type_name(std::string_view type);
 
 }  // namespace slamvdb::recording

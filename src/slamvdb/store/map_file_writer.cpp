@@ -2,15 +2,16 @@
 
 #include <fmt/format.h>
 
-#include "slamvdb/store/atomic_replace.hpp"
+#include "slamvdb/core/output_file.hpp"
 #include "slamvdb/store/map_rows.hpp"
 
 namespace slamvdb {
 namespace fs = std::filesystem;
 using namespace store;
 
-MapFileWriter::MapFileWriter(const fs::path& path, MapParams params) : path_(path), params_(std::move(params)) {
-  db_ = std::make_unique<Database>(path_, SQLITE_OPEN_READWRITE | SQLITE_OPEN_NOMUTEX);
+MapFileWriter::MapFileWriter(const fs::path& path, const fs::path& working, MapParams params)
+    : path_(path), working_(working), params_(std::move(params)) {
+  db_ = std::make_unique<Database>(working_, SQLITE_OPEN_READWRITE | SQLITE_OPEN_NOMUTEX);
   // The rollback journal makes every commit atomic; FULL syncs make it durable on power loss too
   // (a commit per submap, so the syncs cost nothing measurable). Other processes may read the file
   // between commits (slamvdb info while mapping).
@@ -22,8 +23,10 @@ MapFileWriter::~MapFileWriter() = default;
 std::unique_ptr<MapFileWriter> MapFileWriter::create(const fs::path& path, const MapParams& params,
                                                      const MapInfo& info) {
   try {
-    store::replace_atomically(path, [&](const fs::path& temp) {
-      Database db(temp, SQLITE_OPEN_READWRITE | SQLITE_OPEN_NOMUTEX);
+    auto out = std::make_unique<OutputFile>(path);
+    if (!out->is_stream()) remove_stale_map_temp_files(out->destination().resolved);
+    {
+      Database db(out->temp_path(), SQLITE_OPEN_READWRITE | SQLITE_OPEN_NOMUTEX);
       db.exec(fmt::format("PRAGMA page_size = {}; PRAGMA journal_mode = OFF; PRAGMA application_id = {}; "
                           "PRAGMA user_version = {};",
                           kPageSize, kMapApplicationId, kMapFormatVersion));
@@ -33,8 +36,18 @@ std::unique_ptr<MapFileWriter> MapFileWriter::create(const fs::path& path, const
       write_meta(db, map_meta(params, info));
       db.exec("COMMIT");
       db.close();
-    });
-    return std::unique_ptr<MapFileWriter>(new MapFileWriter(path, params));
+    }
+    // A file is complete and in place from here on, growing by one commit per submap; a device or
+    // FIFO gets the finished file at the end.
+    fs::path working = out->temp_path();
+    if (!out->is_stream()) {
+      working = out->destination().resolved;
+      out->commit();
+      out.reset();
+    }
+    auto writer = std::unique_ptr<MapFileWriter>(new MapFileWriter(path, working, params));
+    writer->stream_output_ = std::move(out);
+    return writer;
   } catch (const std::exception& e) {
     throw Error(fmt::format("cannot start map file {}: {}", path.string(), e.what()));
   }
@@ -46,7 +59,7 @@ std::unique_ptr<MapFileWriter> MapFileWriter::open_existing(const fs::path& path
     throw Error(fmt::format("cannot continue map file {}: format version {}, only version {} grows submap by submap",
                             path.string(), summary.format_version, kMapFormatVersion));
   try {
-    return std::unique_ptr<MapFileWriter>(new MapFileWriter(path, summary.params));
+    return std::unique_ptr<MapFileWriter>(new MapFileWriter(path, path, summary.params));
   } catch (const std::exception& e) {
     throw Error(fmt::format("cannot continue map file {}: {}", path.string(), e.what()));
   }
@@ -54,6 +67,7 @@ std::unique_ptr<MapFileWriter> MapFileWriter::open_existing(const fs::path& path
 
 template <class F>
 void MapFileWriter::transaction(const char* what, F&& write) {
+  if (!db_) throw Error(fmt::format("cannot {} in map file {}: it was finished", what, path_.string()));
   try {
     db_->exec("BEGIN IMMEDIATE");
     try {
@@ -111,6 +125,7 @@ void MapFileWriter::save_merge(const SemanticMap& map, int target, int source) {
 }
 
 std::pair<SubmapInfo, VoxelMap> MapFileWriter::load(int id) {
+  if (!db_) throw Error(fmt::format("cannot read submap {} back from map file {}: it was finished", id, path_.string()));
   try {
     for (const SubmapSummary& s : read_submap_rows(*db_, kMapFormatVersion))
       if (s.info.id == id)
@@ -122,7 +137,7 @@ std::pair<SubmapInfo, VoxelMap> MapFileWriter::load(int id) {
   }
 }
 
-void MapFileWriter::finish(const MapInfo& info, uint64_t memory_bytes) {
+MapFileSummary MapFileWriter::finish(const MapInfo& info, uint64_t memory_bytes) {
   transaction("record the map's info", [&] {
     Meta meta = map_meta(params_, info);
     if (memory_bytes) meta["memory_bytes"] = std::to_string(memory_bytes);
@@ -135,6 +150,13 @@ void MapFileWriter::finish(const MapInfo& info, uint64_t memory_bytes) {
     meta["semantic_payload_bytes"] = std::to_string(sums.int64(1));
     write_meta(*db_, meta);
   });
+  MapFileSummary summary = read_map_summary(working_);
+  if (stream_output_) {
+    db_.reset();
+    stream_output_->commit();  // Error: "cannot write PATH: <reason>"
+    stream_output_.reset();
+  }
+  return summary;
 }
 
 }  // namespace slamvdb

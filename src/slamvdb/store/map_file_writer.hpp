@@ -13,14 +13,18 @@
 
 namespace slamvdb {
 
+class OutputFile;
 namespace store {
 class Database;
 }
 
 class MapFileWriter final : public SubmapStore {
  public:
-  // Starts a new map file at `path` holding the parameters and info and no submap yet; a file
-  // already there is replaced atomically. Throws Error naming the path.
+  // Starts a new map file at `path` holding the parameters and info and no submap yet, through the
+  // one output writer (core/output_file.hpp): a file already there is replaced atomically (a
+  // symbolic link's target, the link stays). A character device or FIFO is written through: the
+  // map then grows in a temp file in the temporary directory, copied to it by finish(). Throws
+  // Error naming the path.
   static std::unique_ptr<MapFileWriter> create(const std::filesystem::path& path, const MapParams& params,
                                                const MapInfo& info);
   // Continues the map file at `path` (a run to resume): its parameters stay; load it with
@@ -35,18 +39,21 @@ class MapFileWriter final : public SubmapStore {
 
   // Records the final info (e.g. the colour basis fitted at the end, the effective options) and
   // the totals `slamvdb info` shows; memory_bytes: SemanticMap::memory_bytes() of the whole map
-  // (0: not known, e.g. when submaps left memory while mapping).
-  void finish(const MapInfo& info, uint64_t memory_bytes);
+  // (0: not known, e.g. when submaps left memory while mapping). Returns what the file holds; for
+  // a device or FIFO, copies the file through to it (the writer is done then).
+  MapFileSummary finish(const MapInfo& info, uint64_t memory_bytes);
 
  private:
-  MapFileWriter(const std::filesystem::path& path, MapParams params);
+  // path: the map file named by the user (for messages); working: the SQLite file written.
+  MapFileWriter(const std::filesystem::path& path, const std::filesystem::path& working, MapParams params);
   template <class F>
   void transaction(const char* what, F&& write);
   void erase_submap(int id);
 
-  std::filesystem::path path_;
+  std::filesystem::path path_, working_;
   MapParams params_;
-  std::unique_ptr<store::Database> db_;
+  std::unique_ptr<OutputFile> stream_output_;  // a device or FIFO, written at finish()
+  std::unique_ptr<store::Database> db_;        // declared last: closed before the temp file goes
 };
 
 }  // namespace slamvdb

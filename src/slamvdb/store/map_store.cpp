@@ -8,7 +8,7 @@
 
 #include <tbb/parallel_for.h>
 
-#include "slamvdb/store/atomic_replace.hpp"
+#include "slamvdb/core/output_file.hpp"
 #include "slamvdb/store/map_rows.hpp"
 
 namespace slamvdb {
@@ -17,7 +17,9 @@ namespace {
 
 using namespace store;
 
-void write_database(const fs::path& file, const SemanticMap& map) {
+// Returns what it wrote (without file_bytes), summarised as it goes: nothing is read back (a map
+// whose content load_map would refuse is still saved, and refused when loaded).
+MapFileSummary write_database(const fs::path& file, const SemanticMap& map) {
   Database db(file, SQLITE_OPEN_READWRITE | SQLITE_OPEN_NOMUTEX);
   // No journal and no syncs: the file is private until the rename, and fsynced before it.
   db.exec(fmt::format(
@@ -27,10 +29,18 @@ void write_database(const fs::path& file, const SemanticMap& map) {
   db.exec("BEGIN");
   db.exec(kSchema);
   PayloadBytes payload;
+  MapFileSummary summary;
+  summary.format_version = kMapFormatVersion;
+  summary.params = map.params();
+  summary.info = map.info();
   const EmbeddingPrecision precision = map.params().semantic.precision;
   for (const SubmapInfo& info : map.submaps())
     map.read_submap(info.id, [&](const Submap& s) {
-      write_submap_row(db, summarize(s));
+      const SubmapSummary& row = summary.submaps.emplace_back(summarize(s));
+      summary.known_voxels += row.known_voxels;
+      summary.occupied_voxels += row.occupied_voxels;
+      summary.semantic_voxels += row.semantic_voxels;
+      write_submap_row(db, row);
       const PayloadBytes p = write_submap_voxels(db, s, precision);
       payload.occupancy += p.occupancy, payload.semantics += p.semantics;
     });
@@ -42,6 +52,10 @@ void write_database(const fs::path& file, const SemanticMap& map) {
   write_meta(db, meta);
   db.exec("COMMIT");
   db.close();
+  summary.memory_bytes = map.memory_bytes();
+  summary.occupancy_payload_bytes = payload.occupancy;
+  summary.semantic_payload_bytes = payload.semantics;
+  return summary;
 }
 
 std::unique_ptr<Database> open_reader(const fs::path& path) {
@@ -130,10 +144,24 @@ auto with_path_context(const char* action, const fs::path& path, F&& f) {
 
 }  // namespace
 
-void save_map(const fs::path& path, const SemanticMap& map) {
-  with_path_context("save map", path, [&] {
-    replace_atomically(path, [&](const fs::path& temp) { write_database(temp, map); });
+MapFileSummary save_map(const fs::path& path, const SemanticMap& map) {
+  return with_path_context("save map", path, [&] {
+    OutputFile out(path);
+    if (!out.is_stream()) remove_stale_map_temp_files(out.destination().resolved);
+    MapFileSummary summary = write_database(out.temp_path(), map);
+    summary.file_bytes = fs::file_size(out.temp_path());
+    out.commit();
+    return summary;
   });
+}
+
+void remove_stale_map_temp_files(const fs::path& map_file) {
+  try {
+    remove_stale_temp_files(map_file.parent_path().empty() ? fs::path(".") : map_file.parent_path(),
+                            map_file.filename().string());
+  } catch (const Error&) {
+    // Best effort: the directory is written next anyway, and that reports a real problem.
+  }
 }
 
 MapFileSummary read_map_summary(const fs::path& path) {

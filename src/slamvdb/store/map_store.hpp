@@ -54,9 +54,16 @@ struct MapFileSummary {
   uint64_t semantic_payload_bytes = 0;    // keys + counts + embeddings blobs
 };
 
-// Writes the map to a unique temp file beside `path`, fsyncs it, renames it over `path` and
-// fsyncs the directory. Throws Error (naming the path) on failure; `path` is then untouched.
-void save_map(const std::filesystem::path& path, const SemanticMap& map);
+// Writes the map through the one output writer (core/output_file.hpp): to a unique temp file
+// beside `path`, fsynced, renamed over `path` (symbolic links followed), directory fsynced; or, for
+// a character device or FIFO, to a temp file in the temporary directory copied through to it.
+// Returns what the file holds (as written; nothing is read back). Throws Error (naming
+// the path and the reason) on failure; a file at `path` is then untouched.
+MapFileSummary save_map(const std::filesystem::path& path, const SemanticMap& map);
+
+// Removes the temp files that killed saves of `map_file` left beside it (their process is gone).
+// Best effort: never throws.
+void remove_stale_map_temp_files(const std::filesystem::path& map_file);
 
 // Throws Error naming the path and the first problem for a missing, foreign, truncated, corrupt
 // (CRC mismatch), impossible (non-finite, not rigid, duplicate, out of range) or newer-version file.

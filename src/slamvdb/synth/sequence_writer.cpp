@@ -11,7 +11,7 @@
 
 #include "slamvdb/core/error.hpp"
 #include "slamvdb/core/ontology.hpp"
-#include "slamvdb/io/atomic_file.hpp"
+#include "slamvdb/core/output_file.hpp"
 #include "slamvdb/io/sequence_reader.hpp"
 #include "slamvdb/synth/camera_sim.hpp"
 
@@ -44,7 +44,7 @@ void prepare_output(const fs::path& out, bool overwrite) {
   }
   fs::create_directories(out, ec);
   if (ec) throw Error(fmt::format("cannot create {}: {}", out.string(), ec.message()));
-  write_file_atomically(out / kIncompleteMarker,
+  write_output_file(out / kIncompleteMarker,
                         "slamvdb synth is writing this sequence; if this file remains, it failed or was killed\n");
   for (const char* dir : {kLidarDir, kLidarLabelDir, kImageDir, kImageLabelDir, kImageViewDir}) {
     fs::remove_all(out / dir, ec);
@@ -58,12 +58,12 @@ void prepare_output(const fs::path& out, bool overwrite) {
   }
 }
 
-// Every file is written under a temporary name and renamed (io/atomic_file.hpp), unsynced: the
+// Every file is written under a temporary name and renamed (core/output_file.hpp), unsynced: the
 // file system is synced once at the end, before the marker is removed.
-constexpr AtomicWriteOptions kUnsynced{.sync = false};
+constexpr OutputOptions kUnsynced{.sync = false};
 
 void write_bytes(const fs::path& path, const void* data, std::size_t size) {
-  write_file_atomically(path, std::string_view(static_cast<const char*>(data), size), kUnsynced);
+  write_output_file(path, std::string_view(static_cast<const char*>(data), size), kUnsynced);
 }
 
 void write_text(const fs::path& path, const std::string& text) { write_bytes(path, text.data(), text.size()); }

@@ -4,7 +4,7 @@
 #include <gtest/gtest.h>
 #include <sys/mount.h>
 
-#include "slamvdb/io/atomic_file.hpp"
+#include "slamvdb/core/output_file.hpp"
 #include "slamvdb/io/sequence_reader.hpp"
 #include "slamvdb/synth/sequence_writer.hpp"
 #include "slamvdb/testing/run_command.hpp"
@@ -29,7 +29,7 @@ std::string synth_command(const fs::path& out, const std::string& limits) {
 void expect_no_partial_files(const fs::path& out) {
   for (const auto& entry : fs::recursive_directory_iterator(out)) {
     if (!entry.is_regular_file()) continue;
-    EXPECT_FALSE(is_atomic_temp_file(entry.path())) << entry.path();
+    EXPECT_FALSE(is_output_temp_file(entry.path())) << entry.path();
     if (entry.path().extension() == ".bin") {
       EXPECT_GT(entry.file_size(), 0u) << entry.path();
       EXPECT_EQ(entry.file_size() % 16, 0u) << entry.path();

@@ -1,4 +1,4 @@
-#include "slamvdb/io/atomic_file.hpp"
+#include "slamvdb/core/output_file.hpp"
 
 #include <gtest/gtest.h>
 #include <sys/mount.h>
@@ -42,15 +42,15 @@ struct ScopedTmpfs {
   }
 };
 
-TEST(AtomicFile, WritesAndLeavesNoTemporary) {
+TEST(OutputFile, WritesAndLeavesNoTemporary) {
   testing::TempDir dir;
   const fs::path target = dir.path / "out.bin";
-  write_file_atomically(target, "first");
+  write_output_file(target, "first");
   EXPECT_EQ(slurp(target), "first");
-  AtomicFile f(target);
+  OutputFile f(target);
   f.write("sec");
   f.write(std::string_view("ond"));
-  EXPECT_TRUE(is_atomic_temp_file(f.temp_path()));
+  EXPECT_TRUE(is_output_temp_file(f.temp_path()));
   EXPECT_EQ(f.temp_path().parent_path(), target.parent_path());
   EXPECT_EQ(slurp(target), "first");  // untouched until commit
   f.commit();
@@ -58,18 +58,18 @@ TEST(AtomicFile, WritesAndLeavesNoTemporary) {
   EXPECT_EQ(entries(dir.path), 1u);
 }
 
-TEST(AtomicFile, AnAbandonedWriteKeepsThePreviousFile) {
+TEST(OutputFile, AnAbandonedWriteKeepsThePreviousFile) {
   testing::TempDir dir;
   const fs::path target = dir.path / "map.ply";
-  write_file_atomically(target, "complete");
+  write_output_file(target, "complete");
   {
-    AtomicFile f(target, {.sync = false});
+    OutputFile f(target, {.sync = false});
     f.write("half of a new fi");
   }  // an exception unwinding through the writer does this
   EXPECT_EQ(slurp(target), "complete");
   EXPECT_EQ(entries(dir.path), 1u);
   const std::string e = error_of([&] {
-    write_file_atomically_with(target, [](const fs::path& temp) {
+    write_output_file_with(target, [](const fs::path& temp) {
       std::ofstream(temp) << "partial";
       throw Error("encoder failed");
     });
@@ -77,43 +77,43 @@ TEST(AtomicFile, AnAbandonedWriteKeepsThePreviousFile) {
   EXPECT_EQ(e, "encoder failed");
   EXPECT_EQ(slurp(target), "complete");
   EXPECT_EQ(entries(dir.path), 1u);
-  write_file_atomically_with(target, [](const fs::path& temp) { std::ofstream(temp) << "by name"; });
+  write_output_file_with(target, [](const fs::path& temp) { std::ofstream(temp) << "by name"; });
   EXPECT_EQ(slurp(target), "by name");
 }
 
-TEST(AtomicFile, MissingDirectoryIsAnErrorNamingTheTarget) {
+TEST(OutputFile, MissingDirectoryIsAnErrorNamingTheTarget) {
   testing::TempDir dir;
-  const std::string e = error_of([&] { write_file_atomically(dir.path / "no" / "such.npy", "x"); });
+  const std::string e = error_of([&] { write_output_file(dir.path / "no" / "such.npy", "x"); });
   EXPECT_NE(e.find("such.npy"), std::string::npos) << e;
   EXPECT_NE(e.find("does not exist"), std::string::npos) << e;
-  EXPECT_FALSE(error_of([&] { write_file_atomically(dir.path, "x"); }).empty());  // a directory, not a file
+  EXPECT_FALSE(error_of([&] { write_output_file(dir.path, "x"); }).empty());  // a directory, not a file
 }
 
-TEST(AtomicFile, FullDiskLeavesThePreviousFileAndNoTemporary) {
+TEST(OutputFile, FullDiskLeavesThePreviousFileAndNoTemporary) {
   testing::TempDir dir;
   ScopedTmpfs disk(dir.path / "small", "size=64k");
   if (!disk.mounted) GTEST_SKIP() << "cannot mount a tmpfs here (needs CAP_SYS_ADMIN)";
   const fs::path target = disk.path / "features.npy";
-  write_file_atomically(target, "old content");
-  const std::string e = error_of([&] { write_file_atomically(target, std::string(1 << 20, 'x')); });
+  write_output_file(target, "old content");
+  const std::string e = error_of([&] { write_output_file(target, std::string(1 << 20, 'x')); });
   EXPECT_NE(e.find("No space left on device"), std::string::npos) << e;
   EXPECT_NE(e.find("features.npy"), std::string::npos) << e;
   EXPECT_EQ(slurp(target), "old content");
   EXPECT_EQ(entries(disk.path), 1u);
 }
 
-TEST(AtomicFile, ReadOnlyTargetIsAnError) {
+TEST(OutputFile, ReadOnlyTargetIsAnError) {
   testing::TempDir dir;
   ScopedTmpfs disk(dir.path / "ro", "size=64k");
   if (!disk.mounted) GTEST_SKIP() << "cannot mount a tmpfs here (needs CAP_SYS_ADMIN)";
-  write_file_atomically(disk.path / "a.png", "old");
+  write_output_file(disk.path / "a.png", "old");
   disk.remount_read_only();
-  const std::string e = error_of([&] { write_file_atomically(disk.path / "a.png", "new"); });
+  const std::string e = error_of([&] { write_output_file(disk.path / "a.png", "new"); });
   EXPECT_NE(e.find("Read-only file system"), std::string::npos) << e;
   EXPECT_EQ(slurp(disk.path / "a.png"), "old");
 }
 
-TEST(AtomicFile, StaleTemporariesOfDeadWritersAreRemoved) {
+TEST(OutputFile, StaleTemporariesOfDeadWritersAreRemoved) {
   testing::TempDir dir;
   const pid_t child = ::fork();
   if (child == 0) ::_exit(0);
@@ -123,9 +123,9 @@ TEST(AtomicFile, StaleTemporariesOfDeadWritersAreRemoved) {
   const fs::path ours = dir.path / (".map.svdb.tmp-" + std::to_string(::getpid()) + "-3");
   const fs::path other = dir.path / ".hidden.tmp-notapid";
   for (const auto& p : {stale, ours, other}) std::ofstream(p) << "x";
-  EXPECT_TRUE(is_atomic_temp_file(stale));
-  EXPECT_FALSE(is_atomic_temp_file(other));
-  EXPECT_FALSE(is_atomic_temp_file(dir.path / "map.svdb"));
+  EXPECT_TRUE(is_output_temp_file(stale));
+  EXPECT_FALSE(is_output_temp_file(other));
+  EXPECT_FALSE(is_output_temp_file(dir.path / "map.svdb"));
   EXPECT_EQ(remove_stale_temp_files(dir.path), 1u);
   EXPECT_FALSE(fs::exists(stale));
   EXPECT_TRUE(fs::exists(ours));
