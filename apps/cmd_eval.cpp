@@ -98,6 +98,13 @@ void run(Options opt) {
   json["voxels"] = {{"non_empty", r.map_cells}, {"with_points", r.cells_with_points}};
   json["part"] = {from, to};
   std::string markdown = to_markdown(r.report);
+  // Voxels ranked by how sure the map is of their class (query/class_confidence.hpp).
+  const std::vector<CoveragePoint> coverage = accuracy_coverage(r);
+  fmt::print("\naccuracy of the most confident voxels:\n\n{}", coverage_markdown(coverage));
+  markdown += "\nAccuracy of the most confident voxels:\n\n" + coverage_markdown(coverage);
+  for (const CoveragePoint& p : coverage)
+    json["accuracy_coverage"].push_back(
+        {{"fraction", p.fraction}, {"voxels", p.voxels}, {"accuracy", p.accuracy}, {"min_confidence", p.min_confidence}});
   if (opt.baseline) {
     std::vector<ImageRecord> images;
     for (const ImageRecord& img : select_labelled_images(seq, opt.features))

@@ -24,7 +24,7 @@ class SimEncoderOptions {
   void add_to(CLI::App* cmd) {
     cmd->add_option("--sim-encoder", preset,
                     "SIMULATED encoder: 'realistic' fails as dense vision-language networks do on off-road images "
-                    "(low resolution, view-dependent, persistent and look-alike errors; about 80% pixel accuracy per "
+                    "(low resolution, view-dependent, persistent and look-alike errors; about 78% pixel accuracy per "
                     "image on the default drive), 'clean' is the earlier near-perfect one (96%). The --sim-* options "
                     "below override single failure modes of the preset (0 switches one off)")
         ->capture_default_str()
@@ -38,11 +38,11 @@ class SimEncoderOptions {
     overrides_.push_back(
         {cmd->add_option("--sim-coarse-factor", *coarse,
                          "SIMULATED low resolution: class evidence averaged over N x N feature pixels and upsampled "
-                         "(realistic: 4; 1 = off)")
+                         "(realistic: 2; 1 = off)")
              ->check(integer_range(1, 64)),
          [coarse](SimulatedEncoderConfig& c) { c.coarse_factor = *coarse; }});
     probability("--sim-base-error", &SimulatedEncoderConfig::base_error,
-                "SIMULATED error probability of every pixel (realistic: 0.06)");
+                "SIMULATED error probability of every pixel (realistic: 0.18)");
     probability("--sim-range-error", &SimulatedEncoderConfig::range_error,
                 "SIMULATED extra error probability of far surfaces (ramps from 5 m to 40 m; realistic: 0.30)");
     probability("--sim-grazing-error", &SimulatedEncoderConfig::grazing_error,
@@ -53,9 +53,9 @@ class SimEncoderOptions {
                 "SIMULATED extra error probability in over- or under-exposed regions (realistic: 0.45)");
     probability("--sim-persistence", &SimulatedEncoderConfig::persistence,
                 "SIMULATED share of the error field fixed to the world, so that a place errs alike in every view "
-                "(realistic: 0.5; 0: views err independently)");
+                "(realistic: 0.35; 0: views err independently)");
     probability("--sim-lookalike", &SimulatedEncoderConfig::lookalike_share,
-                "SIMULATED share of errors that show a look-alike class of another coarse class (realistic: 0.6)");
+                "SIMULATED share of errors that show a look-alike class of another coarse class (realistic: 0.7)");
     probability("--sim-confusion", &SimulatedEncoderConfig::confusion_rate,
                 "SIMULATED per-view blob swaps: share of 16-pixel cells relabelled in each view (clean: 0.15, "
                 "realistic: 0)");

@@ -40,15 +40,15 @@ struct SimulatedEncoderConfig {
   // Low resolution: class evidence is averaged over cells of coarse_factor x coarse_factor feature
   // pixels and upsampled bilinearly, so boundaries blur and thin objects (poles, trunks, fences)
   // smear into their background. LSeg's decoder outputs 1/2 of its input, but its ViT-L/16 sees
-  // 16-pixel patches; 4 (a 32 x 48 grid at 128 x 192) sits between the two.
-  int coarse_factor = 4;
+  // 16-pixel patches; 2 (a 64 x 96 grid at 128 x 192) is the decoder's own output grid.
+  int coarse_factor = 2;
   // Where the network errs, pixel by pixel: the probability that a pixel shows a wrong class is
   //   base_error + range_error * ramp(range; range_near_m..range_far_m)
   //   + grazing_error * ramp(1 - cos incidence; 0.5..1) + border_error * ramp(border distance; border_px..0)
   //   + exposure_error in badly exposed regions (about exposure_area of each view),
   // capped at 0.9. Range and incidence come from the SIMULATED view geometry a synthetic sequence
   // carries (synth/camera_sim.hpp); without it (real data) those two terms are 0.
-  float base_error = 0.06f;
+  float base_error = 0.18f;
   float range_error = 0.30f;
   float range_near_m = 5.0f, range_far_m = 40.0f;
   float grazing_error = 0.15f;
@@ -62,7 +62,7 @@ struct SimulatedEncoderConfig {
   // an image-space field that changes slowly, over persistence_period_s) plus sqrt(1 - persistence)
   // x a field drawn anew for each view. 0: every view errs independently (fusion averages errors
   // away); 1: a place is confused in every view alike.
-  float persistence = 0.5f;
+  float persistence = 0.35f;
   float error_cell_px = 10.0f;
   float persistence_period_s = 2.0f;
   // The class an erring pixel shows: with probability lookalike_share a look-alike of its true
@@ -70,7 +70,7 @@ struct SimulatedEncoderConfig {
   // tree, person -> bush, ...: simulated_lookalikes()), else a class of the same coarse class
   // (related_confusion) or any other. The choice is keyed to the world field too, so a persistent
   // error persists with the same wrong class.
-  float lookalike_share = 0.6f;
+  float lookalike_share = 0.7f;
 
   // Text encoder only: SIMULATED text-image gap. 0 (default): a class name's text embedding is
   // its image prototype, an ideal text encoder. g > 0: each name's embedding is its ideal vector
