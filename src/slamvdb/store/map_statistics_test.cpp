@@ -17,7 +17,7 @@ namespace fs = std::filesystem;
 using namespace slamvdb::testing;
 
 // Every semantic voxel of submap `id` as key -> statistics.
-std::map<std::tuple<int, int, int>, VoxelStatistics> statistics_of(const SemanticMap& map, int id) {
+std::map<std::tuple<int, int, int>, VoxelStatistics> stored_statistics_by_key(const SemanticMap& map, int id) {
   std::map<std::tuple<int, int, int>, VoxelStatistics> out;
   map.read_submap(id, [&](const Submap& s) {
     const SemanticLayer& layer = s.voxels().semantics();
@@ -42,7 +42,7 @@ TEST(MapStatistics, Format3KeepsThemAndFormat2FilesLoadWithThemUnknown) {
   });
   const fs::path v3 = dir / "v3.svdb";
   save_map(v3, map);
-  const auto before = statistics_of(map, 3), after = statistics_of(load_map(v3), 3);
+  const auto before = stored_statistics_by_key(map, 3), after = stored_statistics_by_key(load_map(v3), 3);
   ASSERT_EQ(before.size(), after.size());
   for (const auto& [key, s] : before) {
     EXPECT_EQ(after.at(key).weight, s.weight);
