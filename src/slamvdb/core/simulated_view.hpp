@@ -4,8 +4,8 @@
 // 16-bit value in each of three channels:
 //   0: range along the pixel's ray in centimetres (0: sky, nothing hit; saturates at 655 m)
 //   1: cosine of the incidence angle between the ray and the surface normal, x 65535
-//   2: a world-fixed appearance value of the surface point (smooth noise over the world, roughly
-//      standard normal), as 32768 + 8192 x value: the same place has the same value in every view,
+//   2: a world-fixed appearance value of the surface point (smooth noise over the world, mean 0,
+//      sd about 1.3), as 32768 + 8192 x value: the same place has the same value in every view,
 //      so an encoder error keyed to it persists across views.
 // Real datasets have no such image; it exists so that the simulated encoder can fail as a network
 // does where surfaces are far, seen at grazing angles, or look like another class.
