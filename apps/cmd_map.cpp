@@ -198,8 +198,8 @@ void run(Options opt, const std::string& config) {
   final_info.config = config;  // the map says how it was made
   map.set_info(final_info);
   record_colour_basis(map, opt.colour_basis);
-  // With submaps unloaded, memory holds only part of the map: its size is then not recorded.
-  // What the file holds (with submaps unloaded during the run, more than memory does now).
+  // What the file holds (with submaps unloaded during the run, more than memory does now, whose
+  // size is then not recorded).
   const MapFileSummary saved = writer ? writer->finish(map.info(), report.submaps_unloaded ? 0 : map.memory_bytes())
                                       : save_map(opt.output, map);
   fmt::print("map saved to {}: {} submaps, {} occupied voxels, {} semantic entries ({} {}-d), {:.1f} MB file{}\n",
@@ -315,14 +315,16 @@ void add(CLI::App& root) {
                 "mapping restarts after its last finished submap, with the same options");
   cmd->add_flag("--no-checkpoints", opt->no_checkpoints,
                 "Write the map file once at the end (atomically) instead of submap by submap while mapping");
+  opt->pipeline.unload_radius = kDefaultUnloadRadius;
   cmd->add_option("--unload-radius", opt->pipeline.unload_radius,
                   "Finished submaps whose anchor is farther than this (m) from the vehicle leave memory (they are in "
-                  "the map file) and come back when it returns (0: keep all in memory)")
+                  "the map file) and come back when it returns, so memory stays bounded on long drives (0: keep all "
+                  "in memory; --no-checkpoints also keeps all)")
       ->capture_default_str()
       ->check(finite_range(0, 1e7));
   add_max_memory_option(cmd, opt->max_memory_gb);
   add_colour_basis_option(cmd, opt->colour_basis);
-  add_option_checks(cmd, [opt] {
+  add_option_checks(cmd, [opt, cmd] {
     check_map_options(opt->pipeline, MappingChoices{opt->features, opt->feature_size, opt->sim_feature_precision,
                                                     opt->precision, opt->distortion, opt->max_memory_gb});
     check_colour_basis_option(opt->colour_basis, opt->pipeline.map.semantic.dim);
@@ -332,6 +334,10 @@ void add(CLI::App& root) {
       usage_error(fmt::format("--resume: there is no map file {} to continue", opt->output));
     if (opt->odometry && !opt->poses.empty()) usage_error("--odometry and --poses are two pose sources: give one");
     if (!opt->tracking.loop_closure && !opt->odometry) usage_error("--no-loop-closure goes with --odometry");
+    if (opt->no_checkpoints && cmd->count("--unload-radius") == 0) {  // no file to unload to: keep all
+      opt->pipeline.unload_radius = 0;
+      cmd->get_option("--unload-radius")->default_str("0");  // as the map records its options
+    }
     if (opt->pipeline.unload_radius > 0 && opt->no_checkpoints)
       usage_error("--unload-radius needs the map file written while mapping: it cannot go with --no-checkpoints");
   });

@@ -5,6 +5,7 @@
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
+#include <filesystem>
 #include <optional>
 
 #include "colour_basis_option.hpp"
@@ -16,11 +17,13 @@
 #include "option_checks.hpp"
 #include "progress.hpp"
 #include "slamvdb/core/error.hpp"
+#include "slamvdb/core/output_file.hpp"
 #include "slamvdb/core/text_escape.hpp"
 #include "slamvdb/io/sequence_reader.hpp"
 #include "slamvdb/io/trajectory_io.hpp"
 #include "slamvdb/localization/trajectory_metrics.hpp"
 #include "slamvdb/pipeline/slam_mapping.hpp"
+#include "slamvdb/store/map_file_writer.hpp"
 #include "slamvdb/store/map_store.hpp"
 
 namespace slamvdb::cli::cmd_slam {
@@ -61,13 +64,32 @@ void run(Options opt, const std::string& config) {
   // Odometry, loop closure and mapping in one pass: each scan's pose goes to the mapper as soon as
   // the scan is registered; accepted loops move (and merge) the submaps while mapping goes on.
   SlamMappingOptions slam_options{opt.pipeline, opt.tracking, MergeOptions{opt.min_merge_overlap}};
+  // The map file grows submap by submap while mapping, as in `map`, so that finished submaps far
+  // from the vehicle can leave memory (--unload-radius); corrections and merges are kept in step.
+  MapInfo start_info;
+  start_info.model_id = source ? source->model_id() : "";
+  start_info.source = seq.root.string();
+  const OutputTarget target = resolve_output(opt.output);
+  auto writer = MapFileWriter::create(opt.output, opt.pipeline.map, start_info);
+  slam_options.pipeline.store = writer.get();
   std::optional<ProgressBar> bar;
-  SlamMappingResult run = map_with_own_poses(seq, source.get(), slam_options,
-                                             [&](std::size_t done, std::size_t total, const TrackingResult& r) {
+  auto progress = [&](std::size_t done, std::size_t total, const TrackingResult& r) {
     if (!bar) bar.emplace("slam", total, "scans");
     bar->update(done, fmt::format("{:.0f} m{}", r.distance,
                                   r.loop_closer ? fmt::format(", {} loops", r.loop_closer->loops().size()) : ""));
-  });
+  };
+  SlamMappingResult run = [&] {
+    try {
+      return map_with_own_poses(seq, source.get(), slam_options, progress);
+    } catch (...) {
+      // slam cannot resume a run, so a failed one leaves no partial map file (a device or FIFO
+      // gets nothing: the file grew in a temporary).
+      writer.reset();
+      std::error_code ignored;
+      if (!target.is_stream()) std::filesystem::remove(target.resolved, ignored);
+      throw;
+    }
+  }();
   if (bar) bar->finish();
   const TrackingResult& tracked = run.tracked;
   for (const auto& line : tracked.problems) spdlog::warn("{}", escape_control(line));
@@ -84,7 +106,8 @@ void run(Options opt, const std::string& config) {
   info.config = config;
   map.set_info(info);
   record_colour_basis(map, opt.colour_basis);
-  save_map(opt.output, map);
+  // With submaps unloaded, memory holds only part of the map: its size is then not recorded.
+  const MapFileSummary saved = writer->finish(map.info(), run.report.submaps_unloaded ? 0 : map.memory_bytes());
   if (!opt.poses_out.empty()) write_trajectory(opt.poses_out, tracked.stamps, corrected_poses, opt.format);
 
   fmt::print("slam of {}: {} scans, {:.1f} m, tracking {:.1f} scans/s{}\n", opt.dataset, tracked.stamps.size(),
@@ -109,8 +132,8 @@ void run(Options opt, const std::string& config) {
       fmt::print("  against the dataset's poses: ATE rmse {:.3f} m with odometry only, {:.3f} m after loop closure\n",
                  before->rmse, after->rmse);
   }
-  fmt::print("map saved to {}: {} submaps, {} semantic cells{}\n", opt.output, map.num_submaps(),
-             map.num_index_cells(), opt.poses_out.empty() ? "" : "; poses written to " + opt.poses_out);
+  fmt::print("map saved to {}: {} submaps, {} semantic entries{}\n", opt.output, saved.submaps.size(),
+             saved.semantic_voxels, opt.poses_out.empty() ? "" : "; poses written to " + opt.poses_out);
 }
 
 void add(CLI::App& root) {
@@ -148,6 +171,12 @@ void add(CLI::App& root) {
                   "Merge two submaps joined by a loop when this share of occupied voxels agrees")
       ->capture_default_str()
       ->check(finite_range(0, 1));
+  opt->pipeline.unload_radius = kDefaultUnloadRadius;
+  cmd->add_option("--unload-radius", opt->pipeline.unload_radius,
+                  "Finished submaps whose anchor is farther than this (m) from the vehicle leave memory (they are in "
+                  "the map file, which grows while mapping) and come back when needed (0: keep all in memory)")
+      ->capture_default_str()
+      ->check(finite_range(0, 1e7));
   add_max_memory_option(cmd, opt->max_memory_gb);
   add_colour_basis_option(cmd, opt->colour_basis);
   add_option_checks(cmd, [opt] {

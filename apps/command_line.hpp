@@ -17,6 +17,7 @@
 #include <limits>
 #include <string>
 
+#include "command_overview.hpp"
 #include "command_registry.hpp"
 #include "option_checks.hpp"
 #include "progress.hpp"
@@ -28,6 +29,7 @@ class CommandLine : public CLI::App, public OptionCheckRegistry {
  public:
   CommandLine() : CLI::App("slamvdb: open-vocabulary semantic voxel maps from LiDAR and camera") {
     require_subcommand(1);
+    formatter(std::make_shared<CommandOverviewFormatter>());  // --help: the commands in workflow order
     fallthrough();  // root options (--quiet, --config, ...) are accepted after the command too
     set_help_all_flag("--help-all", "Show help for every subcommand");
     add_flag("-q,--quiet", quiet_, "Print only warnings and errors (no progress bars)");

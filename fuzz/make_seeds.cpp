@@ -145,7 +145,8 @@ int main(int argc, char** argv) {
   slamvdb::MapParams params;
   params.semantic.dim = 4;
   params.submap_length = 2.0;
-  slamvdb::SemanticMap map(params, slamvdb::MapInfo{"fuzz-space", "rellis3d", "seed"});
+  slamvdb::SemanticMap map(params,
+                          slamvdb::MapInfo{.model_id = "fuzz-space", .ontology = "rellis3d", .source = "seed"});
   for (int i = 0; i < 3; ++i) {  // three short scans: two submaps
     slamvdb::Pose T = slamvdb::Pose::Identity();
     T.translation() = slamvdb::Vec3d(1.5 * i, 0, 1);

@@ -170,8 +170,11 @@ py::dict fuse_features(SemanticMap& map, double stamp, const py::array& features
 }  // namespace
 
 PYBIND11_MODULE(slamvdb, m) {
-  m.doc() = "slamvdb: open-vocabulary semantic voxel maps (Python API over the C++ library)";
-  py::register_exception<Error>(m, "Error");
+  m.doc() = "slamvdb: open-vocabulary semantic voxel maps (Python API over the C++ library).\n\n"
+            "Arrays are numpy arrays; positions are in the world frame (metres); poses are 4 x 4 "
+            "T_world_sensor / T_world_camera matrices.";
+  py::register_exception<Error>(m, "Error").doc() =
+      "A slamvdb error: a bad or unreadable file, a bad argument (the message names it)";
 
   py::class_<SemanticMap>(m, "Map",
                           "A semantic voxel map: free-floating submaps read through a global index (world frame)")
@@ -181,14 +184,20 @@ PYBIND11_MODULE(slamvdb, m) {
              p.occupancy.voxel_size = voxel_size;
              p.semantic = {dim, precision_from_string(precision)};
              p.submap_length = submap_length;
-             return std::make_unique<SemanticMap>(p, MapInfo{model_id, "rellis3d", "python"});
+             return std::make_unique<SemanticMap>(
+                 p, MapInfo{.model_id = model_id, .ontology = "rellis3d", .source = "python"});
            }),
            py::arg("voxel_size") = 0.25, py::arg("dim") = 512, py::arg("precision") = "fp16",
-           py::arg("submap_length") = 50.0, py::arg("model_id") = "")
-      .def_property_readonly("voxel_size", [](const SemanticMap& s) { return s.params().occupancy.voxel_size; })
-      .def_property_readonly("dim", [](const SemanticMap& s) { return s.params().semantic.dim; })
-      .def_property_readonly("model_id", [](const SemanticMap& s) { return s.info().model_id; })
-      .def_property_readonly("num_submaps", &SemanticMap::num_submaps)
+           py::arg("submap_length") = 50.0, py::arg("model_id") = "",
+           "An empty map: voxel edge (m), embedding dimension, storage precision ('fp16' or 'fp32'), metres of "
+           "path per submap (0: one submap), and the id of the encoder whose embedding space it holds")
+      .def_property_readonly("voxel_size", [](const SemanticMap& s) { return s.params().occupancy.voxel_size; },
+                             "Voxel edge in metres")
+      .def_property_readonly("dim", [](const SemanticMap& s) { return s.params().semantic.dim; },
+                             "Embedding dimension")
+      .def_property_readonly("model_id", [](const SemanticMap& s) { return s.info().model_id; },
+                             "The encoder whose embedding space the map holds")
+      .def_property_readonly("num_submaps", &SemanticMap::num_submaps, "Submaps in the map")
       .def_property_readonly("num_semantic_voxels", &SemanticMap::num_index_cells,
                              "Semantic cells of the global index (world frame)")
       .def("integrate_scan",
@@ -198,12 +207,14 @@ PYBIND11_MODULE(slamvdb, m) {
                              py::arg("hits") = st.hit_updates, py::arg("misses") = st.miss_updates);
            },
            py::arg("stamp"), py::arg("points"), py::arg("T_world_sensor"),
-           "Integrate one LiDAR scan (N x 3 points in the sensor frame) at a pose")
+           "Integrate one LiDAR scan (N x 3 points in the sensor frame) at a pose; returns counts: points, "
+           "dropped, hits, misses")
       .def("fuse_features", &fuse_features, py::arg("stamp"), py::arg("features"), py::arg("camera"),
            py::arg("T_world_camera"),
            "Fuse an H x W x C feature map; camera = {'fx', 'fy', 'cx', 'cy'} at the feature resolution")
       .def("finish", &SemanticMap::finish_active_submap, "Store the submap being written (call before saving)")
-      .def("save", [](const SemanticMap& s, const std::filesystem::path& p) { save_map(p, s); })
+      .def("save", [](const SemanticMap& s, const std::filesystem::path& p) { save_map(p, s); }, py::arg("path"),
+           "Write the map file (.svdb), atomically")
       .def("semantic_voxels", &semantic_voxels, "(positions N x 3, embeddings N x dim, counts N), in cell order")
       .def("occupied_voxels",
            [](const SemanticMap& s) {
@@ -220,17 +231,22 @@ PYBIND11_MODULE(slamvdb, m) {
            "Centres of the occupied world cells (all submaps combined), N x 3")
       .def("search", &search, py::arg("query"), py::arg("top_k") = 100, py::arg("threshold") = py::none(),
            "Cosine similarity with a query vector: (positions, scores, counts), best first")
-      .def("classify", &classify, py::arg("queries"), py::arg("void_rule") = true, py::arg("ignore_model_id") = false)
-      .def("at", &at_points, py::arg("points"), "What the map holds at world points (N x 3)");
+      .def("classify", &classify, py::arg("queries"), py::arg("void_rule") = true, py::arg("ignore_model_id") = false,
+           "Label every semantic voxel with its most similar query (void takes its second-best with void_rule): "
+           "dict of positions, classes, scores, margins, counts, names")
+      .def("at", &at_points, py::arg("points"),
+           "What the map holds at world points (N x 3): dict of found, counts, embeddings");
 
   m.def("load_map", [](const std::filesystem::path& p) { return std::make_unique<SemanticMap>(load_map(p)); },
-        py::arg("path"));
+        py::arg("path"), "Load a map file (.svdb)");
 
   py::class_<QuerySet>(m, "QuerySet", "Named query vectors in one embedding space")
-      .def_static("load", &load_query_set, py::arg("path"))
-      .def_readonly("names", &QuerySet::names)
-      .def_readonly("model_id", &QuerySet::model_id)
-      .def_property_readonly("vectors", [](const QuerySet& q) { return Eigen::MatrixXf(q.vectors); });
+      .def_static("load", &load_query_set, py::arg("path"),
+                  "Load a query set file (.json, from train-queries or import-queries)")
+      .def_readonly("names", &QuerySet::names, "Class names, in order")
+      .def_readonly("model_id", &QuerySet::model_id, "The encoder whose embedding space the vectors are in")
+      .def_property_readonly("vectors", [](const QuerySet& q) { return Eigen::MatrixXf(q.vectors); },
+                             "One query vector per class: classes x dim");
 
   m.def("composite_query",
         [](const std::vector<Eigen::VectorXf>& positive, const std::vector<Eigen::VectorXf>& negative) {
@@ -249,11 +265,15 @@ PYBIND11_MODULE(slamvdb, m) {
         "Text embedding from the SIMULATED text encoder (the space of maps built with simulated features)");
 #if SLAMVDB_WITH_TORCH
   py::class_<TorchTextEncoder>(m, "TextEncoder", "A TorchScript CLIP text encoder (MODEL.pt with MODEL.json)")
-      .def(py::init([](const std::filesystem::path& p) { return std::make_unique<TorchTextEncoder>(p); }))
-      .def_property_readonly("model_id", &TorchTextEncoder::model_id)
-      .def("encode", [](TorchTextEncoder& e, const std::string& t) {
-        const auto v = e.encode(t);
-        return Eigen::VectorXf(Eigen::Map<const Eigen::VectorXf>(v.data(), static_cast<Eigen::Index>(v.size())));
-      });
+      .def(py::init([](const std::filesystem::path& p) { return std::make_unique<TorchTextEncoder>(p); }),
+           py::arg("path"), "Load MODEL.pt (its manifest MODEL.json beside it)")
+      .def_property_readonly("model_id", &TorchTextEncoder::model_id, "The model's embedding space")
+      .def(
+          "encode",
+          [](TorchTextEncoder& e, const std::string& t) {
+            const auto v = e.encode(t);
+            return Eigen::VectorXf(Eigen::Map<const Eigen::VectorXf>(v.data(), static_cast<Eigen::Index>(v.size())));
+          },
+          py::arg("text"), "The text's embedding (dim)");
 #endif
 }

@@ -30,7 +30,10 @@ fi
 if [ ! -f $tree/CMakeCache.txt ]; then
   cmake -S . -B $tree -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo "${config[@]}" \
     -DCMAKE_UNITY_BUILD=${SLAMVDB_UNITY:-ON} -DCMAKE_UNITY_BUILD_BATCH_SIZE=16 \
-    -DSLAMVDB_SANITIZE=address,undefined -DSLAMVDB_WITH_TORCH=OFF -DSLAMVDB_PYTHON_MODULE=OFF "${launcher[@]}" > /dev/null
+    -DSLAMVDB_SANITIZE=address,undefined -DSLAMVDB_WITH_TORCH=OFF -DSLAMVDB_PYTHON_MODULE=OFF \
+    -DSLAMVDB_WERROR="${SLAMVDB_WERROR:-OFF}" "${launcher[@]}" > /dev/null
+elif [ -n "${SLAMVDB_WERROR:-}" ]; then
+  cmake $tree -DSLAMVDB_WERROR="$SLAMVDB_WERROR" > /dev/null  # a tree configured before: as asked now
 fi
 targets=("$@")
 [ ${#targets[@]} -gt 0 ] || targets=("${default_targets[@]}")

@@ -4,6 +4,7 @@
 #        SLAMVDB_SKIP_APT=1 scripts/setup.sh   (build only)
 #        SLAMVDB_UNITY=OFF scripts/setup.sh    (one translation unit per source: quicker rebuilds
 #                                               after small edits, slower full builds)
+#        SLAMVDB_WERROR=ON scripts/setup.sh    (warnings are errors: what CI builds with)
 # A unity build (CMake merges up to 16 sources of a target into one translation unit, so Eigen,
 # OpenCV, Torch, gtest and fmt are parsed once per batch, not once per file) is the default: it
 # halves a full build, which is what a fresh machine and CI do.
@@ -30,6 +31,7 @@ PACKAGES=(
   libtorch-dev libopenblas0-pthread  # TorchScript inference (+ fast BLAS)
   python3-torch python3-numpy        # tests trace small TorchScript models
   pybind11-dev python3-dev python3-pytest  # the Python module and its tests
+  python3-mypy                       # its type stubs checked against it (stubtest)
   libceres-dev libnanoflann-dev liblzf-dev  # localization: pose graph, ScanContext k-d tree, PCD binary_compressed
   clang libclang-rt-14-dev           # sanitizer build (ASan + UBSan) and libFuzzer harnesses (scripts/fuzz.sh)
   chromium                           # the HTML viewer's test (headless, driven by playwright-core)
@@ -64,5 +66,5 @@ for dir in viewer tests/recording_fixtures; do
 done
 
 cmake -S . -B build -G Ninja -DCMAKE_BUILD_TYPE=Release -DCMAKE_UNITY_BUILD="${SLAMVDB_UNITY:-ON}" \
-  -DCMAKE_UNITY_BUILD_BATCH_SIZE=16
+  -DCMAKE_UNITY_BUILD_BATCH_SIZE=16 -DSLAMVDB_WERROR="${SLAMVDB_WERROR:-OFF}"
 cmake --build build -j"$(nproc)"

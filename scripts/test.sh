@@ -11,6 +11,8 @@
 # printed at the end, also when a stage fails (README, "Bad input, limits, sanitizers and fuzzing").
 set -euo pipefail
 cd "$(dirname "$0")/.."
+# A warning in the project's code fails every build here (SLAMVDB_WERROR; README, "Warnings").
+export SLAMVDB_WERROR=${SLAMVDB_WERROR:-ON}
 
 stage_rows=()
 stage() {

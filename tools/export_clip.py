@@ -14,7 +14,7 @@ with PIL's bicubic).
   python3 tools/export_clip.py --model ViT-B/32 --out models/
 
 --random-init-test runs the same wrapping, tracing, checking and manifest writing on a randomly
-initialised CLIP-shaped stand-in (tools/make_test_models.py) so this script is exercised without
+initialised CLIP-shaped stand-in (tools/stand_in_networks.py) so this script is exercised without
 the real weights. Its outputs are meaningless as embeddings.
 """
 import argparse
@@ -24,7 +24,7 @@ import shutil
 import torch
 import torch.nn as nn
 
-from export_lseg import trace_checked, write_json
+from export_common import add_common_arguments, trace_checked, write_json
 
 CLIP_MEAN = [0.48145466, 0.4578275, 0.40821073]
 CLIP_STD = [0.26862954, 0.26130258, 0.27577711]
@@ -104,15 +104,6 @@ def export_image(model, out_dir, name, model_id, size, threads=0):
     return manifest
 
 
-def add_common_arguments(p):
-    """The options every export script shares."""
-    p.add_argument("--vocab", help="CLIP merge list (default: the one shipped in the clip package)")
-    p.add_argument("--threads", type=int, default=0,
-                   help="runtime.threads in the manifests; 0 = libtorch's default (one per physical core)")
-    p.add_argument("--random-init-test", action="store_true",
-                   help="export a small randomly initialised stand-in instead (exercises this script)")
-
-
 def main():
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--out", required=True, help="output directory")
@@ -122,14 +113,14 @@ def main():
     os.makedirs(args.out, exist_ok=True)
 
     if args.random_init_test:
-        import make_test_models as tm
+        import stand_in_networks as sn
 
         torch.manual_seed(0)
-        model = tm.TinyClip(tm.TINY_CLIP)
+        model = sn.TinyClip(sn.TINY_CLIP)
         if not args.vocab:
             raise SystemExit("--random-init-test needs --vocab (the CLIP merge list)")
         vocab = os.path.abspath(args.vocab)
-        size, model_id = tm.TINY_CLIP["image_size"], "clip-random-init-test"
+        size, model_id = sn.TINY_CLIP["image_size"], "clip-random-init-test"
     else:
         import clip
 

@@ -15,17 +15,19 @@ slamvdb resizes in C++ as the manifest says.
   python3 tools/export_lseg.py --lseg-repo ~/lang-seg --checkpoint demo_e200.ckpt --out models/
 
 --random-init-test runs the same wrapping, tracing, checking and manifest writing on a randomly
-initialised LSeg-shaped stand-in (tools/make_test_models.py) so this script is exercised without
+initialised LSeg-shaped stand-in (tools/stand_in_networks.py) so this script is exercised without
 the real weights. Its outputs are meaningless as embeddings.
 """
 import argparse
-import json
 import os
 import shutil
 import sys
 
 import torch
 import torch.nn as nn
+
+from export_clip import export_text
+from export_common import add_common_arguments, trace_checked, write_json
 
 LSEG_MEAN = [0.5, 0.5, 0.5]  # LSegModule's norm_mean / norm_std
 LSEG_STD = [0.5, 0.5, 0.5]
@@ -83,26 +85,6 @@ def dense_manifest(model_id, height, width, dim, threads=0):
     }
 
 
-def trace_checked(module, example, path):
-    """Traces `module` on `example`, saves it and checks the reloaded file reproduces eager mode."""
-    module = module.eval()
-    with torch.no_grad():
-        expected = module(example)
-        traced = torch.jit.trace(module, example, check_trace=False)
-        traced.save(path)
-        reloaded = torch.jit.load(path)
-        got = reloaded(example)
-    if got.shape != expected.shape or not torch.allclose(got, expected, atol=1e-4, rtol=1e-4):
-        raise SystemExit(f"{path}: the traced model does not reproduce the eager model")
-    return expected
-
-
-def write_json(path, manifest):
-    with open(path, "w") as f:
-        json.dump(manifest, f, indent=2)
-        f.write("\n")
-
-
 def export_dense(net, forward_vit, out_dir, name, model_id, height, width, threads=0):
     """Writes NAME.pt + NAME.json for LSeg-shaped `net`; returns the manifest."""
     if height % 32 or width % 32:
@@ -150,22 +132,20 @@ def main():
     p.add_argument("--backbone", default="clip_vitl16_384")
     p.add_argument("--height", type=int, default=256)
     p.add_argument("--width", type=int, default=384)
-    from export_clip import add_common_arguments, export_text
-
     add_common_arguments(p)
     args = p.parse_args()
     os.makedirs(args.out, exist_ok=True)
 
     if args.random_init_test:
-        import make_test_models as tm
+        import stand_in_networks as sn
 
         torch.manual_seed(0)
-        net, forward_vit = tm.TinyLSegNet(tm.TINY_LSEG), tm.tiny_forward_vit
-        clip_model = tm.TinyClip(tm.TINY_CLIP)
+        net, forward_vit = sn.TinyLSegNet(sn.TINY_LSEG), sn.tiny_forward_vit
+        clip_model = sn.TinyClip(sn.TINY_CLIP)
         if not args.vocab:
             raise SystemExit("--random-init-test needs --vocab (the CLIP merge list)")
         vocab = os.path.abspath(args.vocab)
-        height, width, model_id = tm.TINY_LSEG["height"], tm.TINY_LSEG["width"], "lseg-random-init-test"
+        height, width, model_id = sn.TINY_LSEG["height"], sn.TINY_LSEG["width"], "lseg-random-init-test"
     else:
         if not args.lseg_repo or not args.checkpoint:
             raise SystemExit("need --lseg-repo and --checkpoint (or --random-init-test)")

@@ -35,8 +35,10 @@ std::vector<CommandCase> commands_with_outputs() {
   return {
       {"classify", ".csv", [=](const std::string& o) { return "classify " + map + " --queries " + queries + " -o " + o; }},
       {"export", ".ply", [=](const std::string& o) { return "export " + map + " -o " + o; }},
+#ifdef SLAMVDB_WITH_TRAINING  // train-queries exists only in builds with Torch
       {"train-queries", ".json",
        [=](const std::string& o) { return "train-queries " + seq + " -o " + o + CliFiles::kTrainOptions; }},
+#endif
       {"map", ".svdb", [=](const std::string& o) { return "map " + seq + " -o " + o + CliFiles::kMapOptions; }},
       {"slam", ".svdb", [=](const std::string& o) { return "slam " + seq + " -o " + o + CliFiles::kMapOptions; }},
       {"odometry", ".txt", [=](const std::string& o) { return "odometry " + seq + " -o " + o; }},

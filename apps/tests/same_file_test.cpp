@@ -52,10 +52,12 @@ TEST_F(SameFile, AnOutputThatIsAnInputIsAUsageErrorAndTheInputStays) {
        [&](const fs::path& o) { return "slam " + seq + " --colour-basis " + map + " -o " + q(o) + kMapOptions; }},
       {"query", file("points.csv"), "out.csv",
        [&](const fs::path& o) { return "query " + map + " --at-csv " + q(file("points.csv")) + " -o " + q(o); }},
+#ifdef SLAMVDB_WITH_TRAINING  // train-queries exists only in builds with Torch
       {"train-queries", file("ontology.yaml"), "out.json",
        [&](const fs::path& o) {
          return "train-queries " + seq + " --ontology " + q(file("ontology.yaml")) + " -o " + q(o) + kTrainOptions;
        }},
+#endif
       {"embed-text", file("model.pt"), "out.npy",
        [&](const fs::path& o) { return "embed-text grass --model " + q(file("model.pt")) + " -o " + q(o); }},
       // A folder output: the file it would write there is the input image.

@@ -41,7 +41,13 @@ at::Tensor unit_vectors(const at::Tensor& t, int64_t dim) {
   return t * scale.to(torch::kHalf);
 }
 
-// A loaded TorchScript module with its manifest; shared by the three encoders.
+}  // namespace
+
+// A loaded TorchScript module with its manifest; shared by the three encoders. In a named
+// namespace: the encoders' Impl structs hold one, and a member of a type with internal linkage
+// is a warning (-Wsubobject-linkage) when a unity build includes this file.
+namespace torch_encoders_detail {
+
 class TorchModel {
  public:
   TorchModel(const fs::path& model_or_manifest, ModelKind kind, const TorchEncoderOptions& options)
@@ -135,7 +141,8 @@ class TorchModel {
   int threads_ = 0;
 };
 
-}  // namespace
+}  // namespace torch_encoders_detail
+using torch_encoders_detail::TorchModel;
 
 // ------------------------------------------------------------------------------------------ dense
 struct TorchDenseImageEncoder::Impl {

@@ -273,7 +273,8 @@ using testing::quote_path;
 SemanticMap small_semantic_map() {
   MapParams params;
   params.semantic = {16, EmbeddingPrecision::kFloat16};
-  SemanticMap map(params, {"simulated-clip-16", "rellis3d", "SIMULATED CLI test map"});
+  SemanticMap map(params,
+                  {.model_id = "simulated-clip-16", .ontology = "rellis3d", .source = "SIMULATED CLI test map"});
   Pose T = Pose::Identity();
   T.translation() = Vec3d(20, -5, 1);
   std::mt19937 rng(5);

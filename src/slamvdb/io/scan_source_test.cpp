@@ -47,7 +47,9 @@ TEST(TrajectoryIo, RoundTripsKittiAndTumAndDetectsTheFormat) {
     EXPECT_EQ(back.format, format);
     ASSERT_EQ(back.poses.size(), 3u);
     for (int i = 0; i < 3; ++i) EXPECT_TRUE(back.poses[i].isApprox(poses[i], 1e-6));
-    if (format == PoseFormat::kTum) EXPECT_DOUBLE_EQ(back.stamps[2], 10.2);
+    if (format == PoseFormat::kTum) {
+      EXPECT_DOUBLE_EQ(back.stamps[2], 10.2);
+    }
   }
   std::ofstream(dir.path / "bad.txt") << "1 2 3\n";
   EXPECT_NE(error_of([&] { read_trajectory(dir.path / "bad.txt"); }).find("bad.txt:1"), std::string::npos);

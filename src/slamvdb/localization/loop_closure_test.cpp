@@ -6,9 +6,9 @@
 #include <numbers>
 
 #include "slamvdb/localization/odometry.hpp"
-#include "slamvdb/localization/simulated_drive_for_tests.hpp"
 #include "slamvdb/localization/trajectory_metrics.hpp"
 #include "slamvdb/testing/error_of.hpp"
+#include "slamvdb/testing/simulated_drive.hpp"
 
 namespace slamvdb::localization {
 namespace {

@@ -8,8 +8,8 @@
 #include <numbers>
 
 #include "slamvdb/core/se3.hpp"
-#include "slamvdb/localization/simulated_drive_for_tests.hpp"
 #include "slamvdb/testing/error_of.hpp"
+#include "slamvdb/testing/simulated_drive.hpp"
 
 namespace slamvdb::localization {
 namespace {

@@ -30,6 +30,8 @@ constexpr EmbeddingPrecision kActivePrecision = EmbeddingPrecision::kFloat32;
 
 }  // namespace
 
+void check_submap_pose(int id, const Pose& T_world_submap) { check_rigid(id, T_world_submap); }
+
 struct SemanticMap::ReadGuard {
   ReadLock map;
   std::optional<ReadLock> active;

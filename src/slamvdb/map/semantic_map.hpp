@@ -29,21 +29,28 @@
 
 namespace slamvdb {
 
+// Every member has a default, so that an aggregate initialiser may name only some of them
+// ({.model_id = ..., .source = ...}) without -Wmissing-field-initializers.
 struct MapInfo {
-  std::string model_id;             // the encoder whose embedding space the map is in
+  std::string model_id{};             // the encoder whose embedding space the map is in
   std::string ontology = "rellis3d";
-  std::string source;               // what the map was built from (dataset path, simulated or not)
-  std::string config;               // how: the effective options of the command that made it (YAML)
-  std::optional<ColourBasis> colour_basis;  // the colours it is drawn in (see colour_basis.hpp)
+  std::string source{};               // what the map was built from (dataset path, simulated or not)
+  std::string config{};               // how: the effective options of the command that made it (YAML)
+  std::optional<ColourBasis> colour_basis{};  // the colours it is drawn in (see colour_basis.hpp)
   // How views were fused (projective_fusion.hpp: "paper", "quality", "single-view"); maps saved
   // before this was recorded were made with the paper's rule.
   std::string fusion = "paper";
-  std::string features;             // the feature source's settings (the simulated encoder's failure modes)
+  std::string features{};             // the feature source's settings (the simulated encoder's failure modes)
 };
 
 struct MergeOptions {
   double min_overlap = 0.3;  // occupied_overlap() below this refuses the merge
 };
+
+// Throws Error unless T_world_submap is a finite rigid transform inside the representable extent:
+// what every submap anchor must be (set_submap_poses checks it; so may a holder of submaps that
+// are out of memory).
+void check_submap_pose(int id, const Pose& T_world_submap);
 
 class SemanticMap {
  public:

@@ -98,7 +98,8 @@ TEST_F(Checkpoints, TheGrowingFileIsTheMapAndFarSubmapsMayLeaveMemory) {
   testing::expect_same_index_cells(load_map(file("unloaded.svdb")), map);
 }
 
-// A correction of a submap that has left memory reaches the file.
+// A correction of a submap that has left memory reaches the file without reading the submap back
+// (a loop closer moves every submap at every loop), and the submap comes back at its new anchor.
 TEST_F(Checkpoints, CorrectionsReachSubmapsThatLeftMemory) {
   const Sequence seq = read_sequence(sequence());
   PipelineOptions o = options();
@@ -117,7 +118,18 @@ TEST_F(Checkpoints, CorrectionsReachSubmapsThatLeftMemory) {
   Pose moved = before.T_world_submap;
   moved.translation() += Vec3d(0.5, -0.25, 0.0);
   mapper.correct_submaps({{0, moved}});
-  EXPECT_TRUE(mapper.map().submap_info(0));  // read back to be moved
+  EXPECT_FALSE(mapper.map().submap_info(0));  // moved where it waits, not read back
+  const std::vector<SubmapInfo> all = mapper.submaps();  // in memory or not
+  ASSERT_GE(all.size(), 2u);
+  EXPECT_EQ(all.front().id, 0);
+  EXPECT_TRUE(all.front().T_world_submap.isApprox(moved, 1e-12));
+  Pose sheared = moved;
+  sheared.matrix()(0, 1) = 0.5;  // not rigid: refused, nothing moves
+  EXPECT_THROW(mapper.correct_submaps({{0, sheared}, {all.back().id, all.back().T_world_submap}}), Error);
+  mapper.end_mapping();
+  mapper.merge_submaps(0, 1);  // merged or refused, both are read back first
+  ASSERT_TRUE(mapper.map().submap_info(0));
+  EXPECT_TRUE(mapper.map().submap_info(0)->T_world_submap.isApprox(moved, 1e-12));
   mapper.finish();
   const SemanticMap saved = load_map(file("corrected.svdb"));
   ASSERT_TRUE(saved.submap_info(0));

@@ -50,9 +50,9 @@ TEST_F(CliOptionBounds, MapRefusesOutOfRangeValuesNamingTheOption) {
            {"--distortion '1 2 3 nan 5'", "--distortion"},
        })
     expect_usage_error(map + args, mention);
-  // The output directory is checked before the replay, as a runtime error.
+  // The output directory is checked with every other output before the replay: a usage error.
   const CommandResult r = cli("map " + seq() + " -o " + out("missing/m.svdb"));
-  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_EQ(r.exit_code, 2) << r.output;
   EXPECT_NE(r.output.find("does not exist"), std::string::npos) << r.output;
   // A small voxel size is allowed, with a memory estimate.
   const CommandResult small = cli(map + "--voxel-size 0.05 --dim 8");

@@ -42,6 +42,13 @@
 
 namespace slamvdb {
 
+// The unload radius `map` and `slam` use unless told otherwise (metres). A finished submap's voxels
+// lie within its length (50 m) plus the LiDAR's range (100 m) of its anchor, and fusion looks
+// 40 m from the camera (FusionParams::max_depth), so at the default options a submap farther
+// than 190 m can change nothing the mapper does: unloading it leaves the map as it would be, with
+// `--occlusion all` too. Measured in the README ("Memory on long drives").
+inline constexpr double kDefaultUnloadRadius = 200.0;
+
 struct MapperOptions {
   MapParams map;
   FusionParams fusion;
@@ -56,7 +63,7 @@ struct MapperOptions {
   std::size_t max_queued_items = 16;                  // scans + images waiting, feature maps included
   std::size_t max_queued_bytes = std::size_t{1} << 30;  // their points and feature maps
   // Finished submaps whose anchor is farther than this from the robot leave memory (0: never);
-  // they come back within 0.8 of it. Needs a SubmapStore.
+  // they come back within 0.8 of it. Needs a SubmapStore. The CLI's default: kDefaultUnloadRadius.
   double unload_radius = 0;
 };
 
@@ -89,11 +96,20 @@ class Mapper {
   void wait_until_idle();
 
   // ---- loop closure (any thread) ----
-  void correct_submaps(const std::map<int, Pose>& T_world_submap);  // throws Error like SemanticMap
+  // Moves submaps, in memory or not (one out of memory takes its new anchor in the store and
+  // comes back with it: a correction reads nothing back). Throws Error like SemanticMap, before
+  // anything is moved.
+  void correct_submaps(const std::map<int, Pose>& T_world_submap);
+  // Reads the two submaps back first when they left memory.
   MergeReport merge_submaps(int target, int source, const MergeOptions& options = {});
+  // Every submap of the map, in memory or only in the store, by id (a loop closer's view).
+  std::vector<SubmapInfo> submaps() const;
 
   // Processes what can be, counts what no pose covers, finishes the active submap (handing it to
-  // the store), stops the threads and returns the map (the submaps still in memory).
+  // the store) and stops the threads. Corrections and merges still work after it (the last
+  // submap's loops); finish() calls it if the caller has not.
+  void end_mapping();
+  // Returns the map (the submaps still in memory; the store holds them all).
   SemanticMap finish();
   PipelineReport report() const;  // a snapshot
   // Readers may use the map while mapping goes on (SemanticMap's locks make that safe).
@@ -151,8 +167,9 @@ class Mapper {
   static constexpr std::size_t kSpareFeatureMaps = 2;
   std::vector<FeatureMap> spare_features_;
 
-  std::mutex store_mutex_;  // the store and the submaps that left memory
+  mutable std::mutex store_mutex_;  // the store and the submaps that left memory
   std::map<int, SubmapInfo> unloaded_;
+  bool ended_ = false, taken_ = false;  // end_mapping() done; finish() done (the caller's thread)
 
   std::thread mapping_thread_, inference_thread_;
 };

@@ -39,9 +39,11 @@ std::string PipelineReport::summary() const {
       poses_out_of_order, poses_duplicate, poses_invalid, fusion.fused_voxels, fusion.occluded,
       fusion.pixels_total ? 100.0 * fusion.pixels_used / fusion.pixels_total : 0.0, fusion.pixels_nonfinite,
       fusion.pixels_zero, fusion.frames_refused_invalid, submaps,
-      submaps_unloaded ? fmt::format(" ({} times one left memory, {} times one was read back)", submaps_unloaded,
+      submaps_unloaded ? fmt::format(", at most {} in memory at once, {} at the end ({} times one left memory for the "
+                                     "map file, {} times one was read back)",
+                                     peak_submaps_in_memory, submaps_in_memory_at_end, submaps_unloaded,
                                      submaps_reloaded)
-                       : "",
+                       : fmt::format(", at most {} in memory at once", peak_submaps_in_memory),
       peak_queued_items, peak_queued_bytes / 1e6, seconds_total, seconds_scans, seconds_fusion,
       inference.busy_seconds);
   if (realtime_seconds_behind >= 0)

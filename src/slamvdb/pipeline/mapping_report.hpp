@@ -36,6 +36,7 @@ struct PipelineReport {
   std::size_t submaps = 0;           // submaps in the map at the end (in memory or in the store)
   std::size_t submaps_unloaded = 0;  // times a finished submap left memory for the store
   std::size_t submaps_reloaded = 0;  // times one was read back
+  std::size_t peak_submaps_in_memory = 0, submaps_in_memory_at_end = 0;
   std::size_t peak_queued_items = 0, peak_queued_bytes = 0;
   ScanIntegrationStats points;
   InferenceStats inference;

@@ -70,6 +70,18 @@ TEST(SlamCommand, MapOnOwnPosesAgreesWithTheGroundTruthMap) {
   const double iou = occupied_iou(a, b, 1), exact = occupied_iou(a, b, 0);
   std::cout << "occupied-voxel IoU with the ground-truth map: " << exact << " exact, " << iou << " within one voxel\n";
   EXPECT_GT(iou, 0.9);
+
+  // Far submaps out of memory while mapping (the file grows as in `map`; corrections move them
+  // where they wait, merges read them back): the same map.
+  const fs::path unloaded_map = tmp.path / "unloaded.svdb";
+  const auto unloaded = run_command(cli + " slam " + shell_quote(seq_dir) + " -o " + shell_quote(unloaded_map.string()) +
+                                    common + " --unload-radius 12 2>&1", 300);
+  ASSERT_EQ(unloaded.exit_code, 0) << unloaded.output;
+  EXPECT_NE(unloaded.output.find("times one left memory"), std::string::npos) << unloaded.output;
+  EXPECT_NE(unloaded.output.find("merged into"), std::string::npos) << unloaded.output;
+  const SemanticMap c = load_map(unloaded_map);
+  EXPECT_EQ(c.num_submaps(), a.num_submaps());
+  EXPECT_GT(occupied_iou(c, a, 1), 0.99);
 }
 
 // The number printed right after `label` in `text` (NaN when absent).

@@ -45,8 +45,8 @@ SlamMappingResult map_with_own_poses(const Sequence& seq, FeatureSource* feature
   info.model_id = features ? features->model_id() : "";
   info.source = seq.root.string();
   PipelineOptions pipeline = options.pipeline;
-  pipeline.realtime = false, pipeline.unload_radius = 0, pipeline.store = nullptr;
-  Mapper mapper(mapper_options(seq, pipeline), SemanticMap(options.pipeline.map, info), features);
+  pipeline.realtime = false;
+  Mapper mapper(mapper_options(seq, pipeline), SemanticMap(options.pipeline.map, info), features, pipeline.store);
   SubmapCorrections corrections;
   Pose K_given = Pose::Identity();  // the correction in the poses given to the mapper
   std::size_t loops_seen = 0, optimizations_seen = 0;
@@ -80,7 +80,7 @@ SlamMappingResult map_with_own_poses(const Sequence& seq, FeatureSource* feature
       // after its stamp, corrected, so that images between it and this scan are placed in the
       // corrected world too.
       mapper.wait_until_idle();
-      mapper.correct_submaps(corrections.move(mapper.map().submaps(), world_correction));
+      mapper.correct_submaps(corrections.move(mapper.submaps(), world_correction));
       for (std::size_t l = loops_seen; l < closer->loops().size(); ++l)
         corrections.add_loop(closer->loops()[l].candidate_stamp, closer->loops()[l].query_stamp);
       loops_seen = closer->loops().size(), optimizations_seen = closer->optimizations();
@@ -101,7 +101,7 @@ SlamMappingResult map_with_own_poses(const Sequence& seq, FeatureSource* feature
     give_images_before(rec.stamp);  // a scan before an image of the same stamp
     mapper.add_scan(rec.stamp, std::move(scan.points));
     if (corrections.pending_loops())
-      corrections.merge_ready(mapper.map().submaps(), mapper.map().active_submap_id(),
+      corrections.merge_ready(mapper.submaps(), mapper.map().active_submap_id(),
                               [&](int target, int source) { return mapper.merge_submaps(target, source, options.merge); });
     if (progress) progress(si, num_scans, tracker.result());
     if (mapper.failed()) break;  // finish() names the error
@@ -109,10 +109,13 @@ SlamMappingResult map_with_own_poses(const Sequence& seq, FeatureSource* feature
   if (!mapper.failed()) tracker.require_registered(seq.root.string(), unreadable);
   mapper.end_poses();
   if (!mapper.failed()) give_images_before(std::numeric_limits<double>::infinity());  // after the last pose: counted
+  mapper.end_mapping();
+  // Loops whose newest submap was still being written: it is finished now (merged through the
+  // mapper, which reads submaps back from the store and keeps the store in step).
+  corrections.merge_ready(mapper.submaps(), std::nullopt, [&](int target, int source) {
+    return mapper.merge_submaps(target, source, options.merge);
+  });
   SemanticMap map = mapper.finish();
-  // Loops whose newest submap was still being written: it is finished now.
-  corrections.merge_ready(map.submaps(), std::nullopt,
-                          [&](int target, int source) { return map.merge_submaps(target, source, options.merge); });
   PipelineReport report = mapper.report();
   report.seconds_total = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
   return SlamMappingResult{std::move(map), std::move(report), tracker.take_result(), corrections.report(), G};

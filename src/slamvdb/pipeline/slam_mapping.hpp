@@ -14,7 +14,7 @@
 namespace slamvdb {
 
 struct SlamMappingOptions {
-  PipelineOptions pipeline;  // poses, store, realtime and unload_radius are not used
+  PipelineOptions pipeline;  // poses and realtime are not used; store and unload_radius as in map
   TrackingOptions tracking;
   MergeOptions merge;
 };

@@ -94,7 +94,8 @@ TEST_F(MapStoreTest, DISABLED_LargeMapMeasurement) {
   using Clock = std::chrono::steady_clock;
   MapParams params;
   params.semantic = {512, EmbeddingPrecision::kFloat16};
-  SemanticMap map(params, {"simulated-clip-512", "rellis3d", "SIMULATED measurement map"});
+  SemanticMap map(params,
+                  {.model_id = "simulated-clip-512", .ontology = "rellis3d", .source = "SIMULATED measurement map"});
   VoxelMap voxels(params);
   OccupancyGrid& grid = voxels.occupancy();
   SemanticLayer& layer = voxels.semantics();

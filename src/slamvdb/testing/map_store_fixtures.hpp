@@ -51,7 +51,9 @@ inline SemanticMap make_map(EmbeddingPrecision precision, int dim, int seed,
   params.occupancy.voxel_size = 0.2;
   params.occupancy.clamp_max = 3.25f;
   params.semantic = {dim, precision};
-  SemanticMap map(params, {"simulated-clip-test", "rellis3d", "SIMULATED unit-test map, seed " + std::to_string(seed)});
+  SemanticMap map(params, {.model_id = "simulated-clip-test",
+                           .ontology = "rellis3d",
+                           .source = "SIMULATED unit-test map, seed " + std::to_string(seed)});
   std::mt19937 rng(seed);
   std::uniform_real_distribution<float> lo(-2.0f, 3.25f), unit(-1.0f, 1.0f);
   std::uniform_int_distribution<int> coord(-40, 40);

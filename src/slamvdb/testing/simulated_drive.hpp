@@ -1,6 +1,7 @@
 #pragma once
-// For tests and benchmarks only: a SIMULATED drive (synth world + simulated OS1-64 scans) held in
-// memory, so localization tests need no files.
+// For tests only: a SIMULATED drive (synth world + simulated OS1-64 scans) held in memory, so
+// localization tests need no files. It lives with the other fixtures, not in localization/, which
+// knows nothing of the simulator.
 #include <tbb/parallel_for.h>
 
 #include <vector>
@@ -9,7 +10,7 @@
 #include "slamvdb/synth/world.hpp"
 #include "slamvdb/testing/test_scale.hpp"
 
-namespace slamvdb::localization::testing {
+namespace slamvdb::testing {
 
 struct SimulatedDrive {
   synth::SynthWorld world;
@@ -40,4 +41,4 @@ inline SimulatedDrive simulate_drive(const synth::SynthConfig& config, std::size
   return drive;
 }
 
-}  // namespace slamvdb::localization::testing
+}  // namespace slamvdb::testing
