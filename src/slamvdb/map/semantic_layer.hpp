@@ -17,6 +17,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <limits>
 #include <memory>
 #include <optional>
 #include <span>
@@ -52,6 +53,11 @@ struct VoxelStatistics {
   bool known() const { return spread == spread; }
 };
 
+// The statistics of `count` observations whose spread is not known (weight = count, spread NaN).
+inline VoxelStatistics unknown_statistics(uint32_t count) {
+  return {static_cast<float>(count), std::numeric_limits<float>::quiet_NaN()};
+}
+
 // Chan et al.'s pairwise combination of two sets' statistics, given the squared distance between
 // their means: weights add, spreads add plus wa wb / (wa + wb) |ma - mb|^2.
 inline VoxelStatistics combine_statistics(VoxelStatistics a, VoxelStatistics b, float squared_mean_distance) {
@@ -82,10 +88,12 @@ class SemanticLayer {
   // Eq. 6.1 for two means (merges, resampling): v <- (W v + W' m) / (W + W'), n <- n + c, the
   // statistics combined (combine_statistics); under single_view the entry of larger weight wins.
   void accumulate(const VoxelKey& key, const float* mean, uint32_t count, VoxelStatistics stats);
+  // Without statistics: weight = count and the spread unknown (NaN; 0 would claim a perfectly
+  // consistent voxel, the most confident value).
   void accumulate(const VoxelKey& key, const float* mean, uint32_t count) {
-    accumulate(key, mean, count, {static_cast<float>(count), 0.f});
+    accumulate(key, mean, count, unknown_statistics(count));
   }
-  // Writes an entry as is. count must be >= 1; statistics default to weight = count, spread 0.
+  // Writes an entry as is. count must be >= 1; statistics default to weight = count, spread unknown.
   void set(const VoxelKey& key, const float* embedding, uint32_t count);
   void set(const VoxelKey& key, const float* embedding, uint32_t count, VoxelStatistics stats);
   // Bulk insert (map loading): n new keys, counts >= 1, n x dim values in this layer's precision,
@@ -165,6 +173,11 @@ class SemanticLayer {
   }
   uint32_t& count_ref(Handle h) { return chunk(h).counts[h % kChunkSlots]; }
   VoxelStatistics& stats_ref(Handle h) { return chunk(h).stats[h % kChunkSlots]; }
+  // h's embedding in the layer's precision: written from dim floats, zeroed, or moved a step
+  // towards x (v += step (x - v), returning |x - v_old|^2).
+  void store_embedding(Handle h, const float* values);
+  void zero_embedding(Handle h);
+  float step_embedding(Handle h, const float* x, float step);
 
   SemanticParams params_;
   std::size_t bytes_per_embedding_;

@@ -8,6 +8,7 @@
 #include <map>
 #include <tuple>
 
+#include "slamvdb/store/map_file_writer.hpp"
 #include "slamvdb/testing/map_store_fixtures.hpp"
 
 namespace slamvdb {
@@ -71,6 +72,22 @@ TEST(MapStatistics, Format3KeepsThemAndFormat2FilesLoadWithThemUnknown) {
       EXPECT_FALSE(layer.statistics_of(h).known());
     });
   });
+  fs::remove_all(dir);
+}
+
+// `info` shows the same semantic payload whichever writer made the file: the one that grows a map
+// submap by submap (`map`, `slam`) counts the statistics as save_map does.
+TEST(MapStatistics, BothWritersCountTheStatisticsInThePayload) {
+  const fs::path dir = fs::temp_directory_path() / ("slamvdb_map_payload_test_" + std::to_string(::getpid()));
+  fs::create_directories(dir);
+  const SemanticMap map = make_map(EmbeddingPrecision::kFloat16, 8, 5);
+  const MapFileSummary saved = save_map(dir / "saved.svdb", map);
+  auto writer = MapFileWriter::create(dir / "grown.svdb", map.params(), map.info());
+  for (const SubmapInfo& s : map.submaps()) writer->save_finished(map, s.id);
+  const MapFileSummary grown = writer->finish(map.info(), 0);
+  EXPECT_EQ(saved.semantic_payload_bytes, map.num_semantic_voxels() * (12 + 4 + 8 * 2 + 8));
+  EXPECT_EQ(grown.semantic_payload_bytes, saved.semantic_payload_bytes);
+  EXPECT_EQ(grown.occupancy_payload_bytes, saved.occupancy_payload_bytes);
   fs::remove_all(dir);
 }
 

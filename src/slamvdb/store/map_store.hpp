@@ -51,7 +51,7 @@ struct MapFileSummary {
   uint64_t file_bytes = 0;
   uint64_t memory_bytes = 0;              // SemanticMap::memory_bytes() of the saved map
   uint64_t occupancy_payload_bytes = 0;   // compressed log-odds blobs
-  uint64_t semantic_payload_bytes = 0;    // keys + counts + embeddings blobs
+  uint64_t semantic_payload_bytes = 0;    // keys + counts + embeddings + statistics blobs
 };
 
 // Writes the map through the one output writer (core/output_file.hpp): to a unique temp file
