@@ -47,7 +47,7 @@ struct MapEvaluation {
     float confidence;
     bool correct;
   };
-  std::vector<ScoredVoxel> scored_voxels;
+  std::vector<ScoredVoxel> scored_voxels{};
 };
 
 // The accuracy-coverage curve: for each fraction x, the voxel accuracy of the most confident x of
@@ -61,6 +61,9 @@ std::vector<CoveragePoint> accuracy_coverage(const MapEvaluation& e,
                                              const std::vector<double>& fractions = {0.1, 0.25, 0.5, 0.75, 0.9, 1.0});
 // "| Most confident | Voxels | Accuracy % | Confidence >= |" markdown table.
 std::string coverage_markdown(const std::vector<CoveragePoint>& curve);
+// The curve as a JSON array of {fraction, voxels, accuracy, min_confidence} (eval's and demo's
+// `accuracy_coverage`).
+std::string coverage_json(const std::vector<CoveragePoint>& curve);
 
 using EvaluationProgress = std::function<void(std::size_t done, std::size_t total)>;
 

@@ -19,7 +19,7 @@ struct ImageFrame {
   std::string source;  // file name, for messages
   // CV_16UC3: a SIMULATED sequence's per-pixel view geometry (core/simulated_view.hpp: range,
   // incidence, world appearance), read by the simulated encoder only; empty for real data.
-  cv::Mat view;
+  cv::Mat view{};
 };
 
 class DenseImageEncoder {
