@@ -48,7 +48,7 @@ struct Options {
   double queue_mb = 1024;
   double max_memory_gb = 0;
   std::string occlusion = "active";
-  std::string fusion_weighting = "quality";
+  std::string fusion_weighting = "paper";
   double max_image_pixels = static_cast<double>(kDefaultMaxImagePixels);
   ColourBasisChoice colour_basis;
 };
@@ -86,6 +86,7 @@ std::unique_ptr<FeatureSource> make_feature_source(const Options& opt, const Seq
     sim.output_precision = precision_from_string(opt.sim_feature_precision);
     spdlog::warn("features are SIMULATED from the 2D label images (no network): {}; encoder {}", simulated_model_id(sim),
                  sim.describe());
+    warn_missing_view_geometry(seq, sim);
     return std::make_unique<EncoderFeatureSource>(std::make_unique<SimulatedDenseEncoder>(sim),
                                                   EncoderFeatureSource::Input::kLabels);
   }
@@ -93,8 +94,9 @@ std::unique_ptr<FeatureSource> make_feature_source(const Options& opt, const Seq
 }
 
 // A run continues a map file only with the parameters that made it (a voxel of another size or an
-// embedding of another model would not be the same map); the first difference is named.
-void check_resumable(const SemanticMap& map, const MapParams& p, const std::string& model_id, const Sequence& seq,
+// embedding of another model, fused by another rule or from an encoder with other settings would
+// not be the same map); the first difference is named.
+void check_resumable(const SemanticMap& map, const MapParams& p, const MapInfo& run, const Sequence& seq,
                      const std::string& file) {
   const MapParams& f = map.params();
   const std::pair<const char*, bool> same[] = {
@@ -113,9 +115,18 @@ void check_resumable(const SemanticMap& map, const MapParams& p, const std::stri
       {"index cell size", f.index_cell() == p.index_cell()}};
   for (const auto& [what, equal] : same)
     if (!equal) throw Error(fmt::format("--resume: {} differs from the run that made {}; give the same options", what, file));
-  if (map.info().model_id != model_id)
+  if (map.info().model_id != run.model_id)
     throw Error(fmt::format("--resume: {} holds embeddings of '{}', this run's features are '{}'", file,
-                            escape_control(map.info().model_id), escape_control(model_id)));
+                            escape_control(map.info().model_id), escape_control(run.model_id)));
+  if (map.info().fusion != run.fusion)
+    throw Error(fmt::format("--resume: {} was fused with the '{}' rule, this run's --fusion-weighting is '{}'", file,
+                            escape_control(map.info().fusion), run.fusion));
+  // The model id names the embedding space only: the SIMULATED encoder's failure modes
+  // (--sim-encoder, --sim-*) are in its recorded settings.
+  if (map.info().features != run.features)
+    throw Error(fmt::format("--resume: {} was made with the encoder settings '{}', this run's are '{}' (give the same "
+                            "--sim-encoder and --sim-* options)",
+                            file, escape_control(map.info().features), escape_control(run.features)));
   std::error_code ec;
   if (std::filesystem::weakly_canonical(map.info().source, ec) != std::filesystem::weakly_canonical(seq.root, ec))
     throw Error(fmt::format("--resume: {} was made from {}, not {}", file, escape_control(map.info().source),
@@ -124,8 +135,7 @@ void check_resumable(const SemanticMap& map, const MapParams& p, const std::stri
 
 void run(Options opt, const std::string& config) {
   opt.pipeline.fusion.occlusion_from_other_submaps = opt.occlusion == "all";
-  opt.pipeline.fusion.weighting = fusion_weighting_from_string(opt.fusion_weighting);
-  opt.pipeline.map.semantic.single_view = opt.pipeline.fusion.weighting == FusionWeighting::kSingleView;
+  set_fusion_weighting(opt.pipeline, opt.fusion_weighting);
   opt.pipeline.map.semantic.precision = precision_from_string(opt.precision);
   opt.pipeline.map.validate();
   ReadOptions read_options;
@@ -160,20 +170,13 @@ void run(Options opt, const std::string& config) {
   opt.pipeline.poses = &poses;
   fmt::print("poses: {} ({} poses)\n", pose_source->describe(), poses.size());
 
-  MapInfo info;
-  info.model_id = source ? source->model_id() : "";
-  info.source = seq.root.string();
-  info.fusion = std::string(to_string(opt.pipeline.fusion.weighting));
-  info.features = source ? source->description() : "";
+  MapInfo info = map_info_for(seq, source.get(), opt.pipeline);
   info.config = config;
   std::optional<SemanticMap> start;
   std::unique_ptr<MapFileWriter> writer;
   if (opt.resume) {
     start.emplace(load_map(opt.output));
-    check_resumable(*start, opt.pipeline.map, info.model_id, seq, opt.output);
-    if (start->info().fusion != info.fusion)
-      throw Error(fmt::format("--resume: {} was fused with the '{}' rule, this run's --fusion-weighting is '{}'", opt.output,
-                              escape_control(start->info().fusion), info.fusion));
+    check_resumable(*start, opt.pipeline.map, info, seq, opt.output);
     double end = -1e300;
     for (const SubmapInfo& s : start->submaps()) end = std::max(end, s.time_range.end);
     fmt::print("resuming {}: {} finished submaps, mapped up to {:.3f} s\n", opt.output, start->num_submaps(),
@@ -242,13 +245,7 @@ void add(CLI::App& root) {
                   "finished submaps near the camera)")
       ->capture_default_str()
       ->check(CLI::IsMember({"active", "all"}));
-  cmd->add_option("--fusion-weighting", opt->fusion_weighting,
-                  "How the views of a voxel are combined: 'quality' weights each view by its range, incidence angle "
-                  "and distance to the image border and leaves out pixels near depth edges; 'paper' is the paper's "
-                  "plain running mean (Eq. 6.1); 'single-view' is a baseline that keeps only each voxel's nearest "
-                  "view. Recorded in the map")
-      ->capture_default_str()
-      ->check(CLI::IsMember({"quality", "paper", "single-view"}));
+  add_fusion_weighting_option(cmd, opt->fusion_weighting);
   cmd->add_option("--dim", m.semantic.dim, "Embedding dimension")
       ->capture_default_str()
       ->check(integer_range(1, bounds::kMaxDim));

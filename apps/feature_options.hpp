@@ -147,6 +147,7 @@ inline std::unique_ptr<FeatureSource> make_feature_source(const FeatureOptions& 
   const SimulatedEncoderConfig sim = simulated_config(o);
   spdlog::warn("features are SIMULATED from the 2D label images (no network): {}; encoder {}", simulated_model_id(sim),
                sim.describe());
+  warn_missing_view_geometry(seq, sim);
   return std::make_unique<EncoderFeatureSource>(std::make_unique<SimulatedDenseEncoder>(sim),
                                                 EncoderFeatureSource::Input::kLabels);
 }

@@ -5,6 +5,7 @@
 // in --config overrides the preset; options not given take the preset's value and are not written
 // into a map's recorded configuration, so that a recorded `sim-encoder: clean` re-runs clean.
 #include <fmt/format.h>
+#include <spdlog/spdlog.h>
 
 #include <CLI/CLI.hpp>
 #include <functional>
@@ -14,6 +15,8 @@
 
 #include "option_checks.hpp"
 #include "slamvdb/inference/simulated_encoders.hpp"
+#include "slamvdb/io/dataset.hpp"
+#include "slamvdb/io/rellis_reader.hpp"
 
 namespace slamvdb::cli {
 
@@ -74,5 +77,21 @@ class SimEncoderOptions {
  private:
   std::vector<std::pair<CLI::Option*, std::function<void(SimulatedEncoderConfig&)>>> overrides_;
 };
+
+// The SIMULATED encoder reads range, incidence and a world-fixed appearance per pixel from the view
+// geometry images synth writes beside the camera images. Without them (a sequence written before
+// synth wrote them, or real data) its range and grazing errors are off and its persistent errors
+// follow the image instead of the world: the same settings give other figures. Said once per run.
+inline void warn_missing_view_geometry(const Sequence& seq, const SimulatedEncoderConfig& sim) {
+  if (sim.range_error == 0.f && sim.grazing_error == 0.f && sim.persistence == 0.f) return;
+  std::size_t labelled = 0, without = 0;
+  for (const ImageRecord& img : seq.images)
+    if (!img.labels.empty()) ++labelled, without += img.view.empty();
+  if (without > 0)
+    spdlog::warn("{} of {} labelled images have no SIMULATED view geometry ({}/): the SIMULATED encoder's range and "
+                 "grazing errors are off for them and its persistent errors follow the image, not the world (run "
+                 "`slamvdb synth` again to get it)",
+                 without, labelled, kRellisSimViewDir);
+}
 
 }  // namespace slamvdb::cli

@@ -8,6 +8,7 @@
 #include <atomic>
 #include <cmath>
 #include <mutex>
+#include <nlohmann/json.hpp>
 
 #include "slamvdb/core/error.hpp"
 #include "slamvdb/eval/pixel_scoring.hpp"
@@ -137,6 +138,14 @@ std::string coverage_markdown(const std::vector<CoveragePoint>& curve) {
     out += fmt::format("| {:.0f} % | {} | {:.2f} | {:.3f} |\n", 100 * p.fraction, p.voxels, 100 * p.accuracy,
                        p.min_confidence);
   return out;
+}
+
+std::string coverage_json(const std::vector<CoveragePoint>& curve) {
+  nlohmann::json array = nlohmann::json::array();
+  for (const CoveragePoint& p : curve)
+    array.push_back(
+        {{"fraction", p.fraction}, {"voxels", p.voxels}, {"accuracy", p.accuracy}, {"min_confidence", p.min_confidence}});
+  return array.dump();
 }
 
 }  // namespace slamvdb

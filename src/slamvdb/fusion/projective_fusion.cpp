@@ -22,19 +22,23 @@ double view_cone_half_angle(const CameraModel& c) {
 }  // namespace
 
 std::string_view to_string(FusionWeighting w) {
-  switch (w) {
-    case FusionWeighting::kPaper: return "paper";
-    case FusionWeighting::kQuality: return "quality";
-    case FusionWeighting::kSingleView: return "single-view";
-  }
-  return "paper";
+  const auto i = static_cast<std::size_t>(w);
+  return i < kFusionRuleNames.size() ? kFusionRuleNames[i] : kFusionRuleNames[0];
 }
 
 FusionWeighting fusion_weighting_from_string(std::string_view s) {
-  if (s == "paper") return FusionWeighting::kPaper;
-  if (s == "quality") return FusionWeighting::kQuality;
-  if (s == "single-view") return FusionWeighting::kSingleView;
+  for (std::size_t i = 0; i < kFusionRuleNames.size(); ++i)
+    if (s == kFusionRuleNames[i]) return static_cast<FusionWeighting>(i);
   throw Error(fmt::format("unknown fusion weighting '{}' (expected paper, quality or single-view)", s));
+}
+
+MapInfo map_info_for(std::string source, std::string model_id, std::string features, const FusionParams& fusion) {
+  MapInfo info;
+  info.model_id = std::move(model_id);
+  info.source = std::move(source);
+  info.fusion = std::string(to_string(fusion.weighting));
+  info.features = std::move(features);
+  return info;
 }
 
 FusionStats& FusionStats::operator+=(const FusionStats& o) {

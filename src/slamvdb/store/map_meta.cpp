@@ -1,6 +1,7 @@
 // The meta table: parameters and info as text, numbers in their shortest exact form.
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <charconv>
 #include <cmath>
 #include <iterator>
@@ -142,7 +143,7 @@ MapInfo parse_info(const Meta& meta, int dim) {
   if (const auto basis = meta.find("colour_basis"); basis != meta.end())  // absent before bases were saved
     info.colour_basis = parse_colour_basis(basis->second, dim);
   if (const auto fusion = meta.find("fusion"); fusion != meta.end()) {  // absent before format 3: the paper's rule
-    if (fusion->second != "paper" && fusion->second != "quality" && fusion->second != "single-view")
+    if (std::find(kFusionRuleNames.begin(), kFusionRuleNames.end(), fusion->second) == kFusionRuleNames.end())
       throw Error(fmt::format("meta entry 'fusion' = '{}' is not paper, quality or single-view", fusion->second));
     info.fusion = fusion->second;
   }

@@ -12,6 +12,7 @@
 #include "slamvdb/core/error.hpp"
 #include "slamvdb/core/ontology.hpp"
 #include "slamvdb/core/output_file.hpp"
+#include "slamvdb/io/rellis_reader.hpp"
 #include "slamvdb/io/sequence_reader.hpp"
 #include "slamvdb/synth/camera_sim.hpp"
 
@@ -46,13 +47,13 @@ void prepare_output(const fs::path& out, bool overwrite) {
   if (ec) throw Error(fmt::format("cannot create {}: {}", out.string(), ec.message()));
   write_output_file(out / kIncompleteMarker,
                         "slamvdb synth is writing this sequence; if this file remains, it failed or was killed\n");
-  for (const char* dir : {kLidarDir, kLidarLabelDir, kImageDir, kImageLabelDir, kImageViewDir}) {
+  for (const char* dir : {kLidarDir, kLidarLabelDir, kImageDir, kImageLabelDir, kRellisSimViewDir.data()}) {
     fs::remove_all(out / dir, ec);
     if (ec) throw Error(fmt::format("cannot remove the earlier {}: {}", (out / dir).string(), ec.message()));
   }
   for (const char* file : kTopFiles) fs::remove(out / file, ec);
   remove_stale_temp_files(out);
-  for (const char* dir : {kLidarDir, kLidarLabelDir, kImageDir, kImageLabelDir, kImageViewDir}) {
+  for (const char* dir : {kLidarDir, kLidarLabelDir, kImageDir, kImageLabelDir, kRellisSimViewDir.data()}) {
     fs::create_directories(out / dir, ec);
     if (ec) throw Error(fmt::format("cannot create {}: {}", (out / dir).string(), ec.message()));
   }
@@ -203,7 +204,7 @@ SynthSummary write_synthetic_sequence(const SynthConfig& config, const fs::path&
         cv::Mat half;
         cv::resize(rendered.view, half, cv::Size((rendered.view.cols + 1) / 2, (rendered.view.rows + 1) / 2), 0, 0,
                    cv::INTER_NEAREST);
-        write_image(out / kImageViewDir / (stem + ".png"), half, {cv::IMWRITE_PNG_COMPRESSION, 6});
+        write_image(out / kRellisSimViewDir / (stem + ".png"), half, {cv::IMWRITE_PNG_COMPRESSION, 6});
       }
     }
     const std::lock_guard lock(mutex);
@@ -261,7 +262,7 @@ SynthSummary write_synthetic_sequence(const SynthConfig& config, const fs::path&
   write_text(out / "synth.json", meta.dump(2) + "\n");
   if (!config.view_geometry) {
     std::error_code view_ec;
-    fs::remove(out / kImageViewDir, view_ec);  // created empty by prepare_output
+    fs::remove(out / kRellisSimViewDir, view_ec);  // created empty by prepare_output
   }
   sync_file_system(out);  // everything durable before the sequence is declared complete
   std::error_code ec;
@@ -269,7 +270,7 @@ SynthSummary write_synthetic_sequence(const SynthConfig& config, const fs::path&
     throw Error(fmt::format("cannot remove {}: {}", (out / kIncompleteMarker).string(), ec.message()));
   sync_directory(out);
 
-  for (const char* dir : {kLidarDir, kLidarLabelDir, kImageDir, kImageLabelDir, kImageViewDir})
+  for (const char* dir : {kLidarDir, kLidarLabelDir, kImageDir, kImageLabelDir, kRellisSimViewDir.data()})
     if (fs::is_directory(out / dir, ec))
       for (const auto& entry : fs::directory_iterator(out / dir)) summary.bytes += entry.file_size();
   for (const char* file : kTopFiles) summary.bytes += fs::file_size(out / file);

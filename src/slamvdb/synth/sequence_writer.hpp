@@ -6,7 +6,8 @@
 //   pylon_camera_node_label_id/frame000000-SEC_MSEC.png  uint8 class ids, same stem
 //   pylon_camera_node_sim_view/frame000000-SEC_MSEC.png  SIMULATED view geometry at half the image size
 //                                                        (16-bit, core/simulated_view.hpp; not in RELLIS-3D;
-//                                                        unless config.view_geometry is off)
+//                                                        unless config.view_geometry is off; the folder
+//                                                        name is io's kRellisSimViewDir)
 //   poses.txt        per scan: KITTI 3x4 row-major T_world_lidar
 //   times.txt        per scan: stamp in seconds (our addition; RELLIS-3D has none)
 //   camera_info.txt  "fx fy cx cy" at the written image size, then "k1 k2 p1 p2 k3"
@@ -27,7 +28,6 @@ inline constexpr const char* kLidarDir = "os1_cloud_node_kitti_bin";
 inline constexpr const char* kLidarLabelDir = "os1_cloud_node_semantickitti_label_id";
 inline constexpr const char* kImageDir = "pylon_camera_node";
 inline constexpr const char* kImageLabelDir = "pylon_camera_node_label_id";
-inline constexpr const char* kImageViewDir = "pylon_camera_node_sim_view";
 
 // "frame000012-1700000001_234" for frame 12 at 1700000001.234 s.
 std::string camera_frame_stem(std::size_t frame, int64_t stamp_ms);
