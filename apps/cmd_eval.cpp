@@ -1,6 +1,7 @@
 // `slamvdb eval`: the paper's evaluation of a semantic map against a labelled sequence (Table 6.1):
 // hit rate and voxel-wise recall / precision / IoU, with the per-image baseline beside it.
 #include <fmt/format.h>
+#include <spdlog/spdlog.h>
 
 #include <chrono>
 #include <nlohmann/json.hpp>
@@ -11,6 +12,7 @@
 #include "io_options.hpp"
 #include "progress.hpp"
 #include "slamvdb/core/output_file.hpp"
+#include "slamvdb/core/text_escape.hpp"
 #include "slamvdb/eval/confusion_png.hpp"
 #include "slamvdb/eval/image_baseline.hpp"
 #include "slamvdb/eval/map_evaluation.hpp"
@@ -98,11 +100,22 @@ void run(Options opt) {
   json["voxels"] = {{"non_empty", r.map_cells}, {"with_points", r.cells_with_points}};
   json["part"] = {from, to};
   std::string markdown = to_markdown(r.report);
+  // Voxels ranked by how sure the map is of their class (query/class_confidence.hpp).
+  const std::vector<CoveragePoint> coverage = accuracy_coverage(r);
+  fmt::print("\naccuracy of the most confident voxels:\n\n{}", coverage_markdown(coverage));
+  markdown += "\nAccuracy of the most confident voxels:\n\n" + coverage_markdown(coverage);
+  json["accuracy_coverage"] = nlohmann::json::parse(coverage_json(coverage));
   if (opt.baseline) {
     std::vector<ImageRecord> images;
     for (const ImageRecord& img : select_labelled_images(seq, opt.features))
       if (img.stamp >= begin && img.stamp <= end) images.push_back(img);
     auto source = make_feature_source(opt.features, seq);
+    // The baseline should see the images through the encoder the map was made with: the model id
+    // (checked against the queries) names the embedding space only, not the failure modes.
+    if (!map.info().features.empty() && map.info().features != source->description())
+      spdlog::warn("--baseline: the map was made with the encoder settings '{}', the baseline runs with '{}' (give the "
+                   "map's --sim-encoder / --sim-* options to compare like with like)",
+                   escape_control(map.info().features), escape_control(source->description()));
     ImageBaselineOptions baseline_options;
     baseline_options.classify = options.classify;
     baseline_options.model_check = options.model_check;

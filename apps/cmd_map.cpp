@@ -13,6 +13,7 @@
 #include "map_option_checks.hpp"
 #include "option_checks.hpp"
 #include "progress.hpp"
+#include "sim_encoder_options.hpp"
 #include "slamvdb/core/error.hpp"
 #include "slamvdb/core/text_escape.hpp"
 #include "slamvdb/inference/simulated_encoders.hpp"
@@ -39,6 +40,7 @@ struct Options {
   int threads = -1;
   PipelineOptions pipeline;
   SimulatedEncoderConfig sim;
+  SimEncoderOptions sim_encoder;
   bool realtime = false, resume = false, no_checkpoints = false;
   std::string poses, pose_format = "auto";
   bool odometry = false;
@@ -46,6 +48,7 @@ struct Options {
   double queue_mb = 1024;
   double max_memory_gb = 0;
   std::string occlusion = "active";
+  std::string fusion_weighting = "paper";
   double max_image_pixels = static_cast<double>(kDefaultMaxImagePixels);
   ColourBasisChoice colour_basis;
 };
@@ -72,7 +75,7 @@ std::unique_ptr<FeatureSource> make_feature_source(const Options& opt, const Seq
     throw Error(fmt::format("--features precomputed: no features/<image>.npy files in {}", seq.root.string()));
   }
   if (opt.features == "simulated") {
-    SimulatedEncoderConfig sim = opt.sim;
+    SimulatedEncoderConfig sim = opt.sim_encoder.config(opt.sim);
     static const std::regex kSize(R"((\d{1,5})[xX](\d{1,5}))");
     std::smatch m;
     if (!std::regex_match(opt.feature_size, m, kSize))
@@ -81,7 +84,9 @@ std::unique_ptr<FeatureSource> make_feature_source(const Options& opt, const Seq
     sim.height = std::stoi(m[2]);
     sim.dim = opt.pipeline.map.semantic.dim;
     sim.output_precision = precision_from_string(opt.sim_feature_precision);
-    spdlog::warn("features are SIMULATED from the 2D label images (no network): {}", simulated_model_id(sim));
+    spdlog::warn("features are SIMULATED from the 2D label images (no network): {}; encoder {}", simulated_model_id(sim),
+                 sim.describe());
+    warn_missing_view_geometry(seq, sim);
     return std::make_unique<EncoderFeatureSource>(std::make_unique<SimulatedDenseEncoder>(sim),
                                                   EncoderFeatureSource::Input::kLabels);
   }
@@ -89,14 +94,16 @@ std::unique_ptr<FeatureSource> make_feature_source(const Options& opt, const Seq
 }
 
 // A run continues a map file only with the parameters that made it (a voxel of another size or an
-// embedding of another model would not be the same map); the first difference is named.
-void check_resumable(const SemanticMap& map, const MapParams& p, const std::string& model_id, const Sequence& seq,
+// embedding of another model, fused by another rule or from an encoder with other settings would
+// not be the same map); the first difference is named.
+void check_resumable(const SemanticMap& map, const MapParams& p, const MapInfo& run, const Sequence& seq,
                      const std::string& file) {
   const MapParams& f = map.params();
   const std::pair<const char*, bool> same[] = {
       {"--voxel-size", f.occupancy.voxel_size == p.occupancy.voxel_size},
       {"--dim", f.semantic.dim == p.semantic.dim},
       {"--precision", f.semantic.precision == p.semantic.precision},
+      {"--fusion-weighting single-view", f.semantic.single_view == p.semantic.single_view},
       {"--submap-length", f.submap_length == p.submap_length},
       {"--min-range", f.occupancy.min_point_range == p.occupancy.min_point_range},
       {"--max-range", f.occupancy.max_point_range == p.occupancy.max_point_range},
@@ -108,9 +115,18 @@ void check_resumable(const SemanticMap& map, const MapParams& p, const std::stri
       {"index cell size", f.index_cell() == p.index_cell()}};
   for (const auto& [what, equal] : same)
     if (!equal) throw Error(fmt::format("--resume: {} differs from the run that made {}; give the same options", what, file));
-  if (map.info().model_id != model_id)
+  if (map.info().model_id != run.model_id)
     throw Error(fmt::format("--resume: {} holds embeddings of '{}', this run's features are '{}'", file,
-                            escape_control(map.info().model_id), escape_control(model_id)));
+                            escape_control(map.info().model_id), escape_control(run.model_id)));
+  if (map.info().fusion != run.fusion)
+    throw Error(fmt::format("--resume: {} was fused with the '{}' rule, this run's --fusion-weighting is '{}'", file,
+                            escape_control(map.info().fusion), run.fusion));
+  // The model id names the embedding space only: the SIMULATED encoder's failure modes
+  // (--sim-encoder, --sim-*) are in its recorded settings.
+  if (map.info().features != run.features)
+    throw Error(fmt::format("--resume: {} was made with the encoder settings '{}', this run's are '{}' (give the same "
+                            "--sim-encoder and --sim-* options)",
+                            file, escape_control(map.info().features), escape_control(run.features)));
   std::error_code ec;
   if (std::filesystem::weakly_canonical(map.info().source, ec) != std::filesystem::weakly_canonical(seq.root, ec))
     throw Error(fmt::format("--resume: {} was made from {}, not {}", file, escape_control(map.info().source),
@@ -119,6 +135,7 @@ void check_resumable(const SemanticMap& map, const MapParams& p, const std::stri
 
 void run(Options opt, const std::string& config) {
   opt.pipeline.fusion.occlusion_from_other_submaps = opt.occlusion == "all";
+  set_fusion_weighting(opt.pipeline, opt.fusion_weighting);
   opt.pipeline.map.semantic.precision = precision_from_string(opt.precision);
   opt.pipeline.map.validate();
   ReadOptions read_options;
@@ -153,15 +170,13 @@ void run(Options opt, const std::string& config) {
   opt.pipeline.poses = &poses;
   fmt::print("poses: {} ({} poses)\n", pose_source->describe(), poses.size());
 
-  MapInfo info;
-  info.model_id = source ? source->model_id() : "";
-  info.source = seq.root.string();
+  MapInfo info = map_info_for(seq, source.get(), opt.pipeline);
   info.config = config;
   std::optional<SemanticMap> start;
   std::unique_ptr<MapFileWriter> writer;
   if (opt.resume) {
     start.emplace(load_map(opt.output));
-    check_resumable(*start, opt.pipeline.map, info.model_id, seq, opt.output);
+    check_resumable(*start, opt.pipeline.map, info, seq, opt.output);
     double end = -1e300;
     for (const SubmapInfo& s : start->submaps()) end = std::max(end, s.time_range.end);
     fmt::print("resuming {}: {} finished submaps, mapped up to {:.3f} s\n", opt.output, start->num_submaps(),
@@ -230,6 +245,7 @@ void add(CLI::App& root) {
                   "finished submaps near the camera)")
       ->capture_default_str()
       ->check(CLI::IsMember({"active", "all"}));
+  add_fusion_weighting_option(cmd, opt->fusion_weighting);
   cmd->add_option("--dim", m.semantic.dim, "Embedding dimension")
       ->capture_default_str()
       ->check(integer_range(1, bounds::kMaxDim));
@@ -262,13 +278,7 @@ void add(CLI::App& root) {
                   "files hand over their own precision")
       ->capture_default_str()
       ->check(CLI::IsMember({"fp32", "fp16"}));
-  cmd->add_option("--sim-confusion", opt->sim.confusion_rate, "Simulated per-view confusion rate")
-      ->capture_default_str()
-      ->check(finite_range(0, 1));
-  cmd->add_option("--sim-related-confusion", opt->sim.related_confusion,
-                  "Simulated share of confusions that pick a class of the same coarse class")
-      ->capture_default_str()
-      ->check(finite_range(0, 1));
+  opt->sim_encoder.add_to(cmd);
   cmd->add_option("--queue", opt->pipeline.queue_capacity,
                   "Most scans and images (with their feature maps) waiting in the mapper at once")
       ->capture_default_str()

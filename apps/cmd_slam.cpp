@@ -38,6 +38,7 @@ struct Options {
   double min_merge_overlap = MergeOptions{}.min_overlap;
   double max_memory_gb = 0;
   ColourBasisChoice colour_basis;
+  std::string fusion_weighting = "paper";
 };
 
 // Pose errors of the scans that have a ground-truth pose, after SE(3) alignment.
@@ -66,9 +67,7 @@ void run(Options opt, const std::string& config) {
   SlamMappingOptions slam_options{opt.pipeline, opt.tracking, MergeOptions{opt.min_merge_overlap}};
   // The map file grows submap by submap while mapping, as in `map`, so that finished submaps far
   // from the vehicle can leave memory (--unload-radius); corrections and merges are kept in step.
-  MapInfo start_info;
-  start_info.model_id = source ? source->model_id() : "";
-  start_info.source = seq.root.string();
+  const MapInfo start_info = map_info_for(seq, source.get(), opt.pipeline);
   const OutputTarget target = resolve_output(opt.output);
   auto writer = MapFileWriter::create(opt.output, opt.pipeline.map, start_info);
   slam_options.pipeline.store = writer.get();
@@ -177,11 +176,13 @@ void add(CLI::App& root) {
                   "the map file, which grows while mapping) and come back when needed (0: keep all in memory)")
       ->capture_default_str()
       ->check(finite_range(0, 1e7));
+  add_fusion_weighting_option(cmd, opt->fusion_weighting);
   add_max_memory_option(cmd, opt->max_memory_gb);
   add_colour_basis_option(cmd, opt->colour_basis);
   add_option_checks(cmd, [opt] {
     check_feature_options(opt->features);
     opt->pipeline.map.semantic.dim = opt->features.dim;
+    set_fusion_weighting(opt->pipeline, opt->fusion_weighting);
     // The same checks as `map`: the feature maps, the voxel counts, the memory of one scan.
     const bool fp32 = opt->pipeline.map.semantic.precision == EmbeddingPrecision::kFloat32;
     check_map_options(opt->pipeline, MappingChoices{opt->features.features, opt->features.feature_size, "fp32",

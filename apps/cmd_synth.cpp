@@ -28,6 +28,7 @@ struct Options {
   synth::SynthConfig config;
   std::string image_size = "640x400";
   bool force = false;
+  bool perfect_rig = false;
 };
 
 void parse_image_size(const std::string& text, synth::SynthConfig& config) {
@@ -41,7 +42,12 @@ void parse_image_size(const std::string& text, synth::SynthConfig& config) {
 
 // Usage errors (exit code 2) before the world is built: the image size, and the output's size
 // against the free space where it goes.
-void check_synth_options(Options& opt) {
+void check_synth_options(Options& opt, const CLI::App& cmd) {
+  if (opt.perfect_rig) {
+    for (const char* option : {"--rig-translation-error", "--rig-rotation-error", "--rig-time-offset"})
+      if (cmd.count(option) > 0) usage_error(fmt::format("--perfect-rig sets the rig errors to 0: it cannot go with {}", option));
+    opt.config.rig_translation_error_m = opt.config.rig_rotation_error_deg = opt.config.rig_time_offset_s = 0;
+  }
   check_as_usage([&] {
     parse_image_size(opt.image_size, opt.config);
     opt.config.validate();
@@ -121,11 +127,26 @@ void add(CLI::App& root) {
       ->check(integer_range(1, bounds::kMaxLidarColumns));
   cmd->add_flag("--keep-no-return", opt->config.keep_no_return,
                 "Write rays without a return as all-zero points, like the real sensor's files");
+  cmd->add_option("--rig-translation-error", opt->config.rig_translation_error_m,
+                  "SIMULATED camera-LiDAR extrinsic error (m): the images are rendered from a camera this far from "
+                  "where transforms.yaml says it is, as a real calibration is off by a few centimetres")
+      ->capture_default_str()
+      ->check(finite_range(0, 1));
+  cmd->add_option("--rig-rotation-error", opt->config.rig_rotation_error_deg,
+                  "SIMULATED camera-LiDAR rotation error (degrees), likewise")
+      ->capture_default_str()
+      ->check(finite_range(0, 10));
+  cmd->add_option("--rig-time-offset", opt->config.rig_time_offset_s,
+                  "SIMULATED camera time-stamp error (s): each image shows the scene this much later than its stamp")
+      ->capture_default_str()
+      ->check(finite_range(-0.1, 0.1));
+  cmd->add_flag("--perfect-rig", opt->perfect_rig,
+                "No SIMULATED rig errors (the three above zero): images rendered exactly where the files say");
   cmd->add_flag("--force", opt->force, "Replace a sequence already in OUT_DIR");
   cmd->add_flag("--skip-space-check", opt->skip_space_check,
                 "Write even if the estimated size exceeds the free space (the estimate can be wrong on compressing "
                 "file systems; a full disk still fails cleanly, leaving an incomplete sequence)");
-  add_option_checks(cmd, [opt] { check_synth_options(*opt); });
+  add_option_checks(cmd, [opt, cmd] { check_synth_options(*opt, *cmd); });
   auto io = std::make_shared<IoOptions>(cmd);
   io->output_folder("out_dir", opt->out, {}, /*lock=*/true);  // filled for minutes: one run at a time
   cmd->callback([opt, io] {

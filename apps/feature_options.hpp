@@ -20,6 +20,7 @@
 #include "slamvdb/inference/simulated_encoders.hpp"
 #include "slamvdb/io/dataset.hpp"
 #include "slamvdb/pipeline/feature_source.hpp"
+#include "sim_encoder_options.hpp"
 #if SLAMVDB_WITH_TORCH
 #include "slamvdb/inference/torch_encoders.hpp"
 #endif
@@ -49,8 +50,7 @@ struct FeatureOptions {
   std::string feature_size = "192x128";
   uint64_t sim_seed = 1;
   float sim_text_gap = 0.f;
-  float sim_confusion = SimulatedEncoderConfig{}.confusion_rate;
-  float sim_related_confusion = SimulatedEncoderConfig{}.related_confusion;
+  SimEncoderOptions sim_encoder;
   std::string images;       // FIRST:LAST (0-based, inclusive) among the labelled images
   std::size_t max_images = 0;
 };
@@ -82,14 +82,7 @@ inline void add_feature_options(CLI::App* cmd, FeatureOptions& o, bool with_text
   cmd->add_option("--sim-seed", o.sim_seed, "Seed of the simulated encoder")
       ->capture_default_str()
       ->check(integer_range(0, bounds::kMaxSeed));
-  cmd->add_option("--sim-confusion", o.sim_confusion,
-                  "SIMULATED per-view confusion rate of the simulated encoder (as for `map`)")
-      ->capture_default_str()
-      ->check(finite_range(0.0, 1.0));
-  cmd->add_option("--sim-related-confusion", o.sim_related_confusion,
-                  "SIMULATED share of confusions that pick a class of the same coarse class (as for `map`)")
-      ->capture_default_str()
-      ->check(finite_range(0.0, 1.0));
+  o.sim_encoder.add_to(cmd);
   if (with_text_model)
     cmd->add_option("--sim-text-gap", o.sim_text_gap,
                     "SIMULATED text-image gap of the simulated text encoder: 0 = ideal text embeddings; g > 0 mixes "
@@ -131,9 +124,7 @@ inline SimulatedEncoderConfig simulated_config(const FeatureOptions& o) {
   sim.dim = o.dim;
   sim.seed = o.sim_seed;
   sim.text_gap = o.sim_text_gap;
-  sim.confusion_rate = o.sim_confusion;
-  sim.related_confusion = o.sim_related_confusion;
-  return sim;
+  return o.sim_encoder.config(sim);
 }
 
 inline std::unique_ptr<FeatureSource> make_feature_source(const FeatureOptions& o, const Sequence& seq) {
@@ -154,7 +145,9 @@ inline std::unique_ptr<FeatureSource> make_feature_source(const FeatureOptions& 
     throw Error(fmt::format("--features precomputed: no features/<image>.npy files in {}", seq.root.string()));
   }
   const SimulatedEncoderConfig sim = simulated_config(o);
-  spdlog::warn("features are SIMULATED from the 2D label images (no network): {}", simulated_model_id(sim));
+  spdlog::warn("features are SIMULATED from the 2D label images (no network): {}; encoder {}", simulated_model_id(sim),
+               sim.describe());
+  warn_missing_view_geometry(seq, sim);
   return std::make_unique<EncoderFeatureSource>(std::make_unique<SimulatedDenseEncoder>(sim),
                                                 EncoderFeatureSource::Input::kLabels);
 }

@@ -10,6 +10,7 @@
 #include <filesystem>
 #include <sstream>
 #include <string>
+#include <vector>
 
 #include "memory_checks.hpp"
 #include "option_checks.hpp"
@@ -34,6 +35,23 @@ inline std::array<double, 5> parse_distortion_option(const std::string& text) {
   }
   if (in >> token) usage_error(fmt::format("--distortion '{}' has more than five numbers (k1 k2 p1 p2 k3)", text));
   return d;
+}
+
+// --fusion-weighting of the mapping commands (map, slam): the rule is recorded in the map.
+inline void add_fusion_weighting_option(CLI::App* cmd, std::string& rule) {
+  cmd->add_option("--fusion-weighting", rule,
+                  "How the views of a voxel are combined: 'paper' is the paper's plain running mean (Eq. 6.1); "
+                  "'quality' weights each view by its range, incidence angle and distance to the image border and "
+                  "leaves out pixels near depth edges (not yet shown to beat 'paper'); 'single-view' is a baseline "
+                  "that keeps only each voxel's nearest view. Recorded in the map")
+      ->capture_default_str()
+      ->check(CLI::IsMember(std::vector<std::string>(kFusionRuleNames.begin(), kFusionRuleNames.end())));
+}
+
+// The rule named by --fusion-weighting in `p`, with the map setting the single-view baseline needs.
+inline void set_fusion_weighting(PipelineOptions& p, const std::string& rule) {
+  p.fusion.weighting = fusion_weighting_from_string(rule);
+  p.map.semantic.single_view = p.fusion.weighting == FusionWeighting::kSingleView;
 }
 
 // What a mapping command (map, slam) was asked for beyond PipelineOptions, as given.

@@ -155,7 +155,11 @@ py::dict fuse_features(SemanticMap& map, double stamp, const py::array& features
   cam.fx = camera["fx"].cast<double>(), cam.fy = camera["fy"].cast<double>();
   cam.cx = camera["cx"].cast<double>(), cam.cy = camera["cy"].cast<double>();
   const Pose T = pose_from(T_world_camera);
-  ProjectiveFusion fusion;
+  // The rule the map records (a new map: the default one, as its info says; a loaded map: the rule
+  // it was made with), so that the map's metadata stays true.
+  FusionParams params;
+  params.weighting = fusion_weighting_from_string(map.info().fusion);
+  ProjectiveFusion fusion(params);
   FusionStats stats;
   const bool active = map.update_active(stamp, [&](VoxelMap& v, const Pose& T_world_submap, std::span<const PlacedVoxelMap>) {
     stats = fusion.fuse(v, f, cam, T_world_submap.inverse() * T, {}, T_world_submap);
@@ -184,8 +188,7 @@ PYBIND11_MODULE(slamvdb, m) {
              p.occupancy.voxel_size = voxel_size;
              p.semantic = {dim, precision_from_string(precision)};
              p.submap_length = submap_length;
-             return std::make_unique<SemanticMap>(
-                 p, MapInfo{.model_id = model_id, .ontology = "rellis3d", .source = "python"});
+             return std::make_unique<SemanticMap>(p, map_info_for("python", model_id, model_id, FusionParams{}));
            }),
            py::arg("voxel_size") = 0.25, py::arg("dim") = 512, py::arg("precision") = "fp16",
            py::arg("submap_length") = 50.0, py::arg("model_id") = "",
@@ -211,7 +214,8 @@ PYBIND11_MODULE(slamvdb, m) {
            "dropped, hits, misses")
       .def("fuse_features", &fuse_features, py::arg("stamp"), py::arg("features"), py::arg("camera"),
            py::arg("T_world_camera"),
-           "Fuse an H x W x C feature map; camera = {'fx', 'fy', 'cx', 'cy'} at the feature resolution")
+           "Fuse an H x W x C feature map with the fusion rule the map records ('paper' for a new map); camera = "
+           "{'fx', 'fy', 'cx', 'cy'} at the feature resolution")
       .def("finish", &SemanticMap::finish_active_submap, "Store the submap being written (call before saving)")
       .def("save", [](const SemanticMap& s, const std::filesystem::path& p) { save_map(p, s); }, py::arg("path"),
            "Write the map file (.svdb), atomically")

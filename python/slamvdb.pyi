@@ -50,7 +50,8 @@ class Map:
     def fuse_features(
         self, stamp: float, features: npt.NDArray[Any], camera: dict[str, float], T_world_camera: npt.ArrayLike
     ) -> dict[str, Any]:
-        """Fuse an H x W x C feature map (float16 fused as it is, other dtypes as float32); camera =
+        """Fuse an H x W x C feature map (float16 fused as it is, other dtypes as float32) with the
+        fusion rule the map records ('paper' for a new map); camera =
         {'fx', 'fy', 'cx', 'cy'} at the feature resolution. Returns fused, voxels, pixels_used,
         pixels_nonfinite, pixels_zero, feature_precision."""
     def finish(self) -> None:

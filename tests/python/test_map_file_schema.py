@@ -36,7 +36,7 @@ def read_map(path):
     assert db.execute("PRAGMA application_id").fetchone()[0] == 0x53564442  # "SVDB"
     version = db.execute("PRAGMA user_version").fetchone()[0]
     meta = dict(db.execute("SELECT key, value FROM meta"))
-    assert version == 2 and meta["format_version"] == "2", "this reader knows format version 2"
+    assert version == 3 and meta["format_version"] == "3", "this reader knows format version 3"
     voxel = float(meta["voxel_size"])
     cell = float(meta["index_cell_size"]) or voxel  # 0: the voxel size
     dim = int(meta["semantic_dim"])
@@ -44,12 +44,13 @@ def read_map(path):
     submaps = []
     for sid, pose in db.execute("SELECT id, pose FROM submaps ORDER BY id"):
         T = np.frombuffer(pose, dtype="<f8").reshape(4, 4, order="F")  # column-major T_world_submap
-        keys, counts, embeddings = [], [], []
-        for k, c, e in db.execute("SELECT keys, counts, embeddings FROM semantics WHERE submap = ? ORDER BY chunk",
-                                  (sid,)):
+        keys, counts, embeddings, stats = [], [], [], []
+        for k, c, e, st in db.execute(
+                "SELECT keys, counts, embeddings, stats FROM semantics WHERE submap = ? ORDER BY chunk", (sid,)):
             keys.append(np.frombuffer(k, dtype="<i4").reshape(-1, 3))
             counts.append(np.frombuffer(c, dtype="<u4"))
             embeddings.append(np.frombuffer(e, dtype=dtype).reshape(-1, dim))
+            stats.append(np.frombuffer(st, dtype="<f4").reshape(-1, 2))  # weight sum, spread (NaN: unknown)
         blocks, log_odds = [], []
         for bx, by, bz, blob in db.execute("SELECT bx, by, bz, log_odds FROM occupancy WHERE submap = ?", (sid,)):
             blocks.append((bx, by, bz))
@@ -57,6 +58,7 @@ def read_map(path):
         submaps.append(dict(T=T, keys=np.concatenate(keys) if keys else np.zeros((0, 3), np.int32),
                             counts=np.concatenate(counts) if counts else np.zeros(0, np.uint32),
                             embeddings=np.concatenate(embeddings) if embeddings else np.zeros((0, dim), dtype),
+                            stats=np.concatenate(stats) if stats else np.zeros((0, 2), np.float32),
                             blocks=np.array(blocks, dtype=np.int64).reshape(-1, 3), log_odds=np.array(log_odds)))
     return meta, voxel, cell, submaps
 
@@ -120,6 +122,12 @@ def occupied_cells(meta, voxel, cell, submaps):
 def test_a_map_reads_with_sqlite_and_numpy_alone(made):
     meta, voxel, cell, submaps = read_map(made / "m.svdb")
     assert len(submaps) >= 2
+    # The paper's rule (the default, recorded in meta) weighs every view 1: the weight sums are the counts.
+    assert meta["fusion"] == "paper"
+    for s in submaps:
+        assert len(s["stats"]) == len(s["counts"])
+        np.testing.assert_array_equal(s["stats"][:, 0], s["counts"].astype(np.float32))
+        assert np.all(s["stats"][:, 1] >= 0)  # fused from observations: spreads known
     assert sum(len(s["counts"]) for s in submaps) == sum(
         int(n) for (n,) in sqlite3.connect(made / "m.svdb").execute("SELECT semantic_voxels FROM submaps"))
 

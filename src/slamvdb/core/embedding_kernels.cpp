@@ -41,6 +41,15 @@ float squared_norm_f16_scalar(const uint16_t* v, std::size_t n) {
 void add_scaled_f16_scalar(float* acc, const uint16_t* v, float w, std::size_t n) {
   for (std::size_t i = 0; i < n; ++i) acc[i] += w * slamvdb::half_to_float(v[i]);
 }
+float running_mean_sq_f16_scalar(uint16_t* v, const float* x, float w, std::size_t n) {
+  float s = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    const float old = slamvdb::half_to_float(v[i]), d = x[i] - old;
+    s += d * d;
+    v[i] = slamvdb::float_to_half(old + d * w);
+  }
+  return s;
+}
 
 // ---- AVX2 + F16C + FMA ----
 SLAMVDB_AVX2 float hsum(__m256 v) {
@@ -72,6 +81,51 @@ SLAMVDB_AVX2 void running_mean_f16_avx2(uint16_t* v, const float* x, float w, st
     _mm_storeu_si128(reinterpret_cast<__m128i*>(v + i), _mm256_cvtps_ph(upd, _MM_FROUND_TO_NEAREST_INT));
   }
   running_mean_f16_scalar(v + i, x + i, w, n - i);
+}
+SLAMVDB_AVX2 float running_mean_sq_f16_avx2(uint16_t* v, const float* x, float w, std::size_t n) {
+  const __m256 wv = _mm256_set1_ps(w);
+  __m256 acc = _mm256_setzero_ps();
+  std::size_t i = 0;
+  for (; i + 8 <= n; i += 8) {
+    const __m256 old = load_half8(v + i);
+    const __m256 d = _mm256_sub_ps(_mm256_loadu_ps(x + i), old);
+    acc = _mm256_fmadd_ps(d, d, acc);
+    _mm_storeu_si128(reinterpret_cast<__m128i*>(v + i),
+                     _mm256_cvtps_ph(_mm256_fmadd_ps(d, wv, old), _MM_FROUND_TO_NEAREST_INT));
+  }
+  return hsum(acc) + running_mean_sq_f16_scalar(v + i, x + i, w, n - i);
+}
+SLAMVDB_AVX2 float running_mean_sq_f32_avx2(float* v, const float* x, float w, std::size_t n) {
+  const __m256 wv = _mm256_set1_ps(w);
+  __m256 acc = _mm256_setzero_ps();
+  std::size_t i = 0;
+  for (; i + 8 <= n; i += 8) {
+    const __m256 old = _mm256_loadu_ps(v + i);
+    const __m256 d = _mm256_sub_ps(_mm256_loadu_ps(x + i), old);
+    acc = _mm256_fmadd_ps(d, d, acc);
+    _mm256_storeu_ps(v + i, _mm256_fmadd_ps(d, wv, old));
+  }
+  float s = hsum(acc);
+  for (; i < n; ++i) {
+    const float d = x[i] - v[i];
+    s += d * d;
+    v[i] += d * w;
+  }
+  return s;
+}
+SLAMVDB_AVX2 float squared_distance_f16_avx2(const uint16_t* v, const float* x, std::size_t n) {
+  __m256 acc = _mm256_setzero_ps();
+  std::size_t i = 0;
+  for (; i + 8 <= n; i += 8) {
+    const __m256 d = _mm256_sub_ps(_mm256_loadu_ps(x + i), load_half8(v + i));
+    acc = _mm256_fmadd_ps(d, d, acc);
+  }
+  float s = hsum(acc);
+  for (; i < n; ++i) {
+    const float d = x[i] - _cvtsh_ss(v[i]);
+    s += d * d;
+  }
+  return s;
 }
 SLAMVDB_AVX2 void running_mean_f32_avx2(float* v, const float* x, float w, std::size_t n) {
   const __m256 wv = _mm256_set1_ps(w);
@@ -253,6 +307,34 @@ void running_mean(float* v, const float* x, float w, std::size_t n) {
   for (std::size_t i = 0; i < n; ++i) v[i] += (x[i] - v[i]) * w;
 }
 void running_mean(uint16_t* v, const float* x, float w, std::size_t n) { dispatch().running_mean_f16(v, x, w, n); }
+
+float running_mean_sq(float* v, const float* x, float w, std::size_t n) {
+  if (dispatch().avx2) return running_mean_sq_f32_avx2(v, x, w, n);
+  float s = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    const float d = x[i] - v[i];
+    s += d * d;
+    v[i] += d * w;
+  }
+  return s;
+}
+float running_mean_sq(uint16_t* v, const float* x, float w, std::size_t n) {
+  if (dispatch().avx2) return running_mean_sq_f16_avx2(v, x, w, n);
+  return running_mean_sq_f16_scalar(v, x, w, n);
+}
+
+float squared_distance(EmbeddingView v, const float* x, std::size_t n) {
+  if (v.precision == EmbeddingPrecision::kFloat16 && dispatch().avx2)
+    return squared_distance_f16_avx2(static_cast<const uint16_t*>(v.data), x, n);
+  float s = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    const float a = v.precision == EmbeddingPrecision::kFloat16
+                        ? slamvdb::half_to_float(static_cast<const uint16_t*>(v.data)[i])
+                        : static_cast<const float*>(v.data)[i];
+    s += (x[i] - a) * (x[i] - a);
+  }
+  return s;
+}
 
 void add_scaled(float* acc, EmbeddingView v, float w, std::size_t n) {
   if (v.precision == EmbeddingPrecision::kFloat16)

@@ -41,6 +41,12 @@ void decode(EmbeddingView v, float* out, std::size_t n);
 // v <- v + (x - v) * w: Eq. 6.1's running mean with w = 1 / (n + 1), in place.
 void running_mean(float* v, const float* x, float w, std::size_t n);
 void running_mean(uint16_t* v, const float* x, float w, std::size_t n);
+// The same update (bit for bit), returning sum_i (x_i - v_i)^2 of v before it: the squared distance
+// that Welford's / West's update of the observations' spread needs, in the same pass.
+float running_mean_sq(float* v, const float* x, float w, std::size_t n);
+float running_mean_sq(uint16_t* v, const float* x, float w, std::size_t n);
+// sum_i (x_i - v_i)^2 with v decoded from its precision.
+float squared_distance(EmbeddingView v, const float* x, std::size_t n);
 
 // acc <- acc + w * v (v decoded from its precision): count-weighted sums for index reads and merges.
 void add_scaled(float* acc, EmbeddingView v, float w, std::size_t n);

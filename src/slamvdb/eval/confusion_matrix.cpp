@@ -161,4 +161,13 @@ std::string to_csv(const MetricsReport& r) {
   return csv.text();
 }
 
+std::string comparison_markdown(const std::vector<ScoredMethod>& methods) {
+  std::string out = "| Method | Scored | Accuracy % | mIoU % |\n|---|---:|---:|---:|\n";
+  const auto percent = [](std::optional<double> v) { return v ? fmt::format("{:.2f}", 100 * *v) : std::string(); };
+  for (const ScoredMethod& m : methods)
+    out += fmt::format("| {} | {} {} | {} | {} |\n", m.name, m.matrix.scored(), m.unit, percent(m.matrix.accuracy()),
+                       percent(m.matrix.mean_iou()));
+  return out;
+}
+
 }  // namespace slamvdb

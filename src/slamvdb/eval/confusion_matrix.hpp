@@ -84,4 +84,12 @@ std::string to_json(const MetricsReport& report);
 // class,hit,recall,precision,iou,recalled,relevant (first row "all"); fractions, empty when undefined.
 std::string to_csv(const MetricsReport& report);
 
+// Several methods' scores side by side: a markdown table "Method | Scored | Accuracy % | mIoU %",
+// one row per entry (`unit` names what was scored: "voxels", "pixels").
+struct ScoredMethod {
+  std::string name, unit;
+  const ConfusionMatrix& matrix;
+};
+std::string comparison_markdown(const std::vector<ScoredMethod>& methods);
+
 }  // namespace slamvdb

@@ -4,11 +4,15 @@
 #include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
 
+#include <algorithm>
 #include <atomic>
+#include <cmath>
 #include <mutex>
+#include <nlohmann/json.hpp>
 
 #include "slamvdb/core/error.hpp"
 #include "slamvdb/eval/pixel_scoring.hpp"
+#include "slamvdb/query/class_confidence.hpp"
 
 namespace slamvdb {
 
@@ -101,7 +105,10 @@ MapEvaluation evaluate_map(const SemanticMap& map, const std::vector<GroundTruth
     if (truth < 0) continue;
     ++result.cells_with_points;
     const QueryMatch& m = cells[c].match;
-    result.voxels.add(truth, m.class_index == kNoClass ? ConfusionMatrix::kNoPrediction : class_of_query[m.class_index]);
+    const int predicted = m.class_index == kNoClass ? ConfusionMatrix::kNoPrediction : class_of_query[m.class_index];
+    result.voxels.add(truth, predicted);
+    if (!result.voxels.is_ignored(truth))
+      result.scored_voxels.push_back({class_confidence(m, cells[c].count), predicted == truth});
   }
 
   result.report = result.voxels.report();
@@ -109,6 +116,36 @@ MapEvaluation evaluate_map(const SemanticMap& map, const std::vector<GroundTruth
   for (ClassMetrics& cm : result.report.classes)
     if (const auto j = ontology.find_class(cm.name)) cm.hit = result.points.recall(*j);
   return result;
+}
+
+std::vector<CoveragePoint> accuracy_coverage(const MapEvaluation& e, const std::vector<double>& fractions) {
+  std::vector<MapEvaluation::ScoredVoxel> v = e.scored_voxels;
+  std::stable_sort(v.begin(), v.end(), [](const auto& a, const auto& b) { return a.confidence > b.confidence; });
+  std::vector<CoveragePoint> curve;
+  for (const double f : fractions) {
+    const auto n = static_cast<std::size_t>(std::llround(std::clamp(f, 0.0, 1.0) * static_cast<double>(v.size())));
+    if (n == 0) continue;
+    std::size_t right = 0;
+    for (std::size_t i = 0; i < n; ++i) right += v[i].correct;
+    curve.push_back({f, static_cast<double>(right) / static_cast<double>(n), n, v[n - 1].confidence});
+  }
+  return curve;
+}
+
+std::string coverage_markdown(const std::vector<CoveragePoint>& curve) {
+  std::string out = "| Most confident | Voxels | Accuracy % | Confidence >= |\n|---:|---:|---:|---:|\n";
+  for (const CoveragePoint& p : curve)
+    out += fmt::format("| {:.0f} % | {} | {:.2f} | {:.3f} |\n", 100 * p.fraction, p.voxels, 100 * p.accuracy,
+                       p.min_confidence);
+  return out;
+}
+
+std::string coverage_json(const std::vector<CoveragePoint>& curve) {
+  nlohmann::json array = nlohmann::json::array();
+  for (const CoveragePoint& p : curve)
+    array.push_back(
+        {{"fraction", p.fraction}, {"voxels", p.voxels}, {"accuracy", p.accuracy}, {"min_confidence", p.min_confidence}});
+  return array.dump();
 }
 
 }  // namespace slamvdb

@@ -12,6 +12,7 @@
 // an unlabelled id are skipped; ids the ontology does not know are an error (a wrong ontology).
 #include <cstdint>
 #include <functional>
+#include <string>
 #include <vector>
 
 #include "slamvdb/core/types.hpp"
@@ -41,7 +42,28 @@ struct MapEvaluation {
   uint64_t points_total = 0;  // points of the scans
   uint64_t points_unlabelled = 0, points_void = 0, points_outside = 0;  // skipped, by reason
   std::size_t scans = 0, map_cells = 0, cells_with_points = 0;
+  // Per scored voxel: its class_confidence and whether its class was right (for accuracy_coverage).
+  struct ScoredVoxel {
+    float confidence;
+    bool correct;
+  };
+  std::vector<ScoredVoxel> scored_voxels{};
 };
+
+// The accuracy-coverage curve: for each fraction x, the voxel accuracy of the most confident x of
+// the scored voxels (ties broken by storage order), with the lowest confidence taken in.
+struct CoveragePoint {
+  double fraction = 0, accuracy = 0;
+  std::size_t voxels = 0;
+  float min_confidence = 0;
+};
+std::vector<CoveragePoint> accuracy_coverage(const MapEvaluation& e,
+                                             const std::vector<double>& fractions = {0.1, 0.25, 0.5, 0.75, 0.9, 1.0});
+// "| Most confident | Voxels | Accuracy % | Confidence >= |" markdown table.
+std::string coverage_markdown(const std::vector<CoveragePoint>& curve);
+// The curve as a JSON array of {fraction, voxels, accuracy, min_confidence} (eval's and demo's
+// `accuracy_coverage`).
+std::string coverage_json(const std::vector<CoveragePoint>& curve);
 
 using EvaluationProgress = std::function<void(std::size_t done, std::size_t total)>;
 

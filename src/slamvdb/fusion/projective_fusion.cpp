@@ -21,10 +21,31 @@ double view_cone_half_angle(const CameraModel& c) {
 
 }  // namespace
 
+std::string_view to_string(FusionWeighting w) {
+  const auto i = static_cast<std::size_t>(w);
+  return i < kFusionRuleNames.size() ? kFusionRuleNames[i] : kFusionRuleNames[0];
+}
+
+FusionWeighting fusion_weighting_from_string(std::string_view s) {
+  for (std::size_t i = 0; i < kFusionRuleNames.size(); ++i)
+    if (s == kFusionRuleNames[i]) return static_cast<FusionWeighting>(i);
+  throw Error(fmt::format("unknown fusion weighting '{}' (expected paper, quality or single-view)", s));
+}
+
+MapInfo map_info_for(std::string source, std::string model_id, std::string features, const FusionParams& fusion) {
+  MapInfo info;
+  info.model_id = std::move(model_id);
+  info.source = std::move(source);
+  info.fusion = std::string(to_string(fusion.weighting));
+  info.features = std::move(features);
+  return info;
+}
+
 FusionStats& FusionStats::operator+=(const FusionStats& o) {
   candidates += o.candidates, fused_voxels += o.fused_voxels, occluded += o.occluded;
   pixels_used += o.pixels_used, pixels_total += o.pixels_total, pixels_other_submaps += o.pixels_other_submaps;
   pixels_nonfinite += o.pixels_nonfinite, pixels_zero += o.pixels_zero;
+  pixels_near_edges += o.pixels_near_edges, weight_sum += o.weight_sum;
   frames_refused_invalid += o.frames_refused_invalid;
   return *this;
 }
@@ -139,6 +160,60 @@ const Association& ProjectiveFusion::associate(const OccupancyGrid& grid, const 
   return a;
 }
 
+void ProjectiveFusion::mark_depth_edges(double voxel_size) {
+  const int W = assoc_.width, H = assoc_.height;
+  const float min_step = static_cast<float>(3.0 * voxel_size), rel = static_cast<float>(params_.quality_edge_step);
+  std::vector<uint8_t>& edge = edge_;
+  edge.assign(static_cast<std::size_t>(W) * H, 0);
+  // A step between two neighbours marks both; a pixel without a voxel (sky, beyond max_depth) is
+  // infinitely far, so the outline of what the map holds is a discontinuity too.
+  const auto step = [&](float a, float b) {
+    if (!std::isfinite(a) || !std::isfinite(b)) return std::isfinite(a) != std::isfinite(b);
+    return std::abs(a - b) > std::max(min_step, rel * std::min(a, b));
+  };
+  for (int y = 0; y < H; ++y)
+    for (int x = 0; x < W; ++x) {
+      const std::size_t i = static_cast<std::size_t>(y) * W + x;
+      if (x + 1 < W && step(depth_[i], depth_[i + 1])) edge[i] = edge[i + 1] = 1;
+      if (y + 1 < H && step(depth_[i], depth_[i + W])) edge[i] = edge[i + W] = 1;
+    }
+  // Grow the marks by quality_edge_px - 1 pixels (Chebyshev), a row pass then a column pass.
+  const int r = std::max(0, params_.quality_edge_px - 1);
+  if (r == 0) return;
+  std::vector<uint8_t> grown(edge.size(), 0);
+  for (int y = 0; y < H; ++y)
+    for (int x = 0; x < W; ++x)
+      if (edge[static_cast<std::size_t>(y) * W + x])
+        for (int dx = std::max(0, x - r); dx <= std::min(W - 1, x + r); ++dx) grown[static_cast<std::size_t>(y) * W + dx] = 1;
+  std::fill(edge.begin(), edge.end(), 0);
+  for (int y = 0; y < H; ++y)
+    for (int x = 0; x < W; ++x)
+      if (grown[static_cast<std::size_t>(y) * W + x])
+        for (int dy = std::max(0, y - r); dy <= std::min(H - 1, y + r); ++dy) edge[static_cast<std::size_t>(dy) * W + x] = 1;
+}
+
+float ProjectiveFusion::observation_weight(const OccupancyGrid& grid, const VoxelKey& key, const Vec3d& camera_in_grid,
+                                           double border_term, bool edge_only) const {
+  const Vec3d centre = grid.center_of(key);
+  const Vec3d to_camera = camera_in_grid - centre;
+  const double d = to_camera.norm();
+  if (params_.weighting == FusionWeighting::kSingleView) return static_cast<float>(1.0 / std::max(d, 1e-3));
+  const double r = d / params_.quality_range_m;
+  double w = 1.0 / (1.0 + r * r);
+  // The surface normal: towards the neighbours the LiDAR saw free (the side the surface faces).
+  Vec3d normal = Vec3d::Zero();
+  static const int kFaces[6][3] = {{1, 0, 0}, {-1, 0, 0}, {0, 1, 0}, {0, -1, 0}, {0, 0, 1}, {0, 0, -1}};
+  for (const auto& f : kFaces) {
+    const auto lo = grid.log_odds(VoxelKey(key.x() + f[0], key.y() + f[1], key.z() + f[2]));
+    if (lo && *lo < grid.params().occupied_threshold) normal += Vec3d(f[0], f[1], f[2]);
+  }
+  if (normal.squaredNorm() > 0 && d > 0)
+    w *= std::max(std::abs(normal.normalized().dot(to_camera / d)), params_.quality_min_incidence_cos);
+  w *= border_term;
+  if (edge_only) w *= params_.quality_edge_only_weight;
+  return static_cast<float>(std::max(w, 1e-6));
+}
+
 FusionStats ProjectiveFusion::fuse(VoxelMap& submap, const FeatureMap& features, const CameraModel& camera,
                                    const Pose& T_submap_camera, std::span<const PlacedVoxelMap> occluders,
                                    const Pose& T_world_submap) {
@@ -148,6 +223,10 @@ FusionStats ProjectiveFusion::fuse(VoxelMap& submap, const FeatureMap& features,
   if (features.width() != camera.width || features.height() != camera.height)
     throw Error(fmt::format("feature map is {}x{} but the camera model is {}x{}", features.width(), features.height(),
                             camera.width, camera.height));
+  const bool single_view = params_.weighting == FusionWeighting::kSingleView;
+  if (single_view != submap.semantics().params().single_view)
+    throw Error(single_view ? "single-view fusion needs a map made for it (its semantic layer keeps one observation)"
+                            : "a single-view map takes only single-view fusion");
 
   const Association& a = associate(submap.occupancy(), camera, T_submap_camera, occluders, T_world_submap);
   FusionStats stats;
@@ -155,6 +234,17 @@ FusionStats ProjectiveFusion::fuse(VoxelMap& submap, const FeatureMap& features,
   stats.occluded = a.occluded;
   stats.pixels_total = a.owner.size();
   stats.pixels_other_submaps = a.pixels_other_submaps;
+  const bool quality = params_.weighting == FusionWeighting::kQuality;
+  const bool weighted = params_.weighting != FusionWeighting::kPaper;
+
+  // Pixels near depth edges carry features of both sides: they are left out of a voxel that has
+  // other pixels in this view.
+  if (quality) {
+    mark_depth_edges(submap.voxel_size());
+    inner_count_.assign(a.voxels.size(), 0);
+    for (std::size_t p = 0; p < a.owner.size(); ++p)
+      if (a.owner[p] >= 0 && !edge_[p]) ++inner_count_[a.owner[p]];
+  }
 
   // A pixel whose feature vector is not finite (a network's fp16 overflow, a damaged file) or
   // all zero carries no observation: it is skipped and counted, so that one bad frame can never
@@ -166,11 +256,24 @@ FusionStats ProjectiveFusion::fuse(VoxelMap& submap, const FeatureMap& features,
   const auto udim = static_cast<std::size_t>(dim);
   accum_.assign(a.voxels.size() * udim, 0.0f);
   valid_count_.assign(a.voxels.size(), 0);
+  if (quality) border_sum_.assign(a.voxels.size(), 0.0f);
+  const int W = a.width, H = a.height;
+  const auto border_term = [&](std::size_t p) {
+    if (params_.quality_border_px <= 0) return 1.0f;
+    const int x = static_cast<int>(p % static_cast<std::size_t>(W)), y = static_cast<int>(p / static_cast<std::size_t>(W));
+    const int border = std::min(std::min(x, W - 1 - x), std::min(y, H - 1 - y));
+    const double t = std::min(1.0, static_cast<double>(border) / params_.quality_border_px);
+    return static_cast<float>(params_.quality_border_weight + (1.0 - params_.quality_border_weight) * t);
+  };
   std::size_t on_voxels = 0;
   for (std::size_t p = 0; p < a.owner.size(); ++p) {
     const int32_t o = a.owner[p];
     if (o < 0) continue;
     ++on_voxels;
+    if (quality && edge_[p] && inner_count_[o] > 0) {
+      ++stats.pixels_near_edges;
+      continue;
+    }
     const EmbeddingView f = features.view(p);
     const float n2 = kernels::squared_norm_4way(f, udim);
     if (!std::isfinite(n2)) {
@@ -181,6 +284,7 @@ FusionStats ProjectiveFusion::fuse(VoxelMap& submap, const FeatureMap& features,
       kernels::add(accum_.data() + static_cast<std::size_t>(o) * udim, f, udim);
       ++valid_count_[o];
       ++stats.pixels_used;
+      if (quality) border_sum_[o] += border_term(p);
     }
   }
   const std::size_t invalid = stats.pixels_nonfinite + stats.pixels_zero;
@@ -189,12 +293,22 @@ FusionStats ProjectiveFusion::fuse(VoxelMap& submap, const FeatureMap& features,
     stats.pixels_used = 0;
     return stats;
   }
+  const Vec3d camera_in_grid = T_submap_camera.translation();
   for (std::size_t v = 0; v < a.voxels.size(); ++v) {
     if (valid_count_[v] == 0) continue;
     float* acc = accum_.data() + v * udim;
     const float inv = 1.0f / static_cast<float>(valid_count_[v]);
     for (int c = 0; c < dim; ++c) acc[c] *= inv;
-    submap.semantics().integrate(a.voxels[v], acc);
+    if (!weighted) {
+      submap.semantics().integrate(a.voxels[v], acc);
+      stats.weight_sum += 1.0;
+    } else {
+      const float w = observation_weight(submap.occupancy(), a.voxels[v], camera_in_grid,
+                                         quality ? border_sum_[v] * inv : 1.0, quality && inner_count_[v] == 0);
+      if (single_view) submap.semantics().keep_best(a.voxels[v], acc, w);
+      else submap.semantics().integrate(a.voxels[v], acc, w);
+      stats.weight_sum += w;
+    }
     ++stats.fused_voxels;
   }
   return stats;

@@ -17,6 +17,9 @@ struct ImageFrame {
   cv::Mat rgb;     // CV_8UC3, RGB order
   cv::Mat labels;  // CV_8UC1
   std::string source;  // file name, for messages
+  // CV_16UC3: a SIMULATED sequence's per-pixel view geometry (core/simulated_view.hpp: range,
+  // incidence, world appearance), read by the simulated encoder only; empty for real data.
+  cv::Mat view{};
 };
 
 class DenseImageEncoder {
@@ -28,6 +31,8 @@ class DenseImageEncoder {
   virtual void encode_into(const ImageFrame& frame, FeatureMap& out) { out = encode(frame); }
   virtual int dim() const = 0;
   virtual std::string model_id() const = 0;
+  // What a map records about the features beyond the model id (a simulation's settings).
+  virtual std::string description() const { return model_id(); }
 };
 
 class ImageEncoder {

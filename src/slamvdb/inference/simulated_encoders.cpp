@@ -12,6 +12,7 @@
 
 #include "slamvdb/core/error.hpp"
 #include "slamvdb/core/ontology.hpp"
+#include "slamvdb/inference/simulated_failures.hpp"
 
 namespace slamvdb {
 namespace {
@@ -49,6 +50,17 @@ uint64_t stamp_bits(double stamp) {
   return bits;
 }
 
+// The class an erring pixel of class row k shows: a look-alike with probability lookalike_share
+// (when it has any), else a related class with probability related_share (when it has any), else
+// any class but k. Draws from rng only for the choices it makes.
+int pick_wrong_class(int k, int num_classes, const std::vector<int>& lookalikes, float lookalike_share,
+                     const std::vector<int>& related, float related_share, Rng& rng) {
+  if (!lookalikes.empty() && rng.uniform() < lookalike_share) return lookalikes[rng.next() % lookalikes.size()];
+  if (!related.empty() && rng.uniform() < related_share) return related[rng.next() % related.size()];
+  const int to = static_cast<int>(rng.next() % (num_classes - 1));
+  return to + (to >= k);  // any class but k
+}
+
 std::string ids_of_classes() {
   std::string names;
   for (const auto& c : rellis_classes()) names += fmt::format("{}{}", names.empty() ? "" : ", ", c.id);
@@ -56,24 +68,6 @@ std::string ids_of_classes() {
 }
 
 }  // namespace
-
-void validate(const SimulatedEncoderConfig& c) {
-  const auto fail = [](const std::string& what) { throw Error("simulated encoder config: " + what); };
-  if (c.dim < 1) fail(fmt::format("dim must be >= 1, got {}", c.dim));
-  if (c.height < 1 || c.width < 1) fail(fmt::format("feature size must be >= 1 x 1, got {} x {}", c.height, c.width));
-  if (!(c.related_cosine >= 0.f && c.related_cosine < 1.f))
-    fail(fmt::format("related_cosine must be in [0, 1), got {}", c.related_cosine));
-  if (!(c.confusion_rate >= 0.f && c.confusion_rate <= 1.f))
-    fail(fmt::format("confusion_rate must be in [0, 1], got {}", c.confusion_rate));
-  if (c.confusion_cell < 1) fail(fmt::format("confusion_cell must be >= 1, got {}", c.confusion_cell));
-  if (!(c.related_confusion >= 0.f && c.related_confusion <= 1.f))
-    fail(fmt::format("related_confusion must be in [0, 1], got {}", c.related_confusion));
-  if (!(c.noise_sigma >= 0.f) || !std::isfinite(c.noise_sigma))
-    fail(fmt::format("noise_sigma must be >= 0, got {}", c.noise_sigma));
-  if (!(c.blur >= 0.f) || !std::isfinite(c.blur)) fail(fmt::format("blur must be >= 0, got {}", c.blur));
-  if (!(c.text_gap >= 0.f) || !std::isfinite(c.text_gap))
-    fail(fmt::format("text_gap must be >= 0, got {}", c.text_gap));
-}
 
 PrototypeMatrix simulated_class_prototypes(const SimulatedEncoderConfig& config) {
   validate(config);
@@ -99,12 +93,26 @@ SimulatedDenseEncoder::SimulatedDenseEncoder(SimulatedEncoderConfig config)
   class_row_.fill(-1);
   const auto& classes = rellis_classes();
   for (std::size_t i = 0; i < classes.size(); ++i) class_row_[classes[i].id] = static_cast<int>(i);
+  const int K = static_cast<int>(classes.size());
+  related_.resize(K);
+  lookalike_.resize(K);
+  for (int k = 0; k < K; ++k) {
+    for (int j = 0; j < K; ++j)
+      if (j != k && classes[j].coarse == classes[k].coarse) related_[k].push_back(j);
+    for (const uint16_t id : simulated_lookalikes(classes[k].id)) lookalike_[k].push_back(class_row_[id]);
+  }
 
   // Drawing a Gaussian per value per frame would dominate the cost; pixels pick rows of a bank.
   const float component_sigma = 1.f / std::sqrt(static_cast<float>(config_.dim));
   noise_bank_.resize(static_cast<std::size_t>(kNoiseBankSize) * config_.dim);
   Rng rng{mix(config_.seed, 0x401538A4u)};
   for (float& v : noise_bank_) v = component_sigma * rng.gaussian();
+}
+
+int SimulatedDenseEncoder::wrong_class(int k, uint64_t key) const {
+  Rng rng{key ^ static_cast<uint64_t>(k) * 0x9E3779B97F4A7C15ull};
+  return pick_wrong_class(k, static_cast<int>(prototypes_.rows()), lookalike_[k], config_.lookalike_share, related_[k],
+                          config_.related_confusion, rng);
 }
 
 FeatureMap SimulatedDenseEncoder::encode(const ImageFrame& frame) {
@@ -127,52 +135,63 @@ void SimulatedDenseEncoder::encode_into(const ImageFrame& frame, FeatureMap& out
                                 x, y, ids_of_classes()));
   }
 
-  const int H = config_.height, W = config_.width, D = config_.dim, K = static_cast<int>(prototypes_.rows());
+  const int H = config_.height, W = config_.width, K = static_cast<int>(prototypes_.rows());
   cv::Mat labels;
   cv::resize(frame.labels, labels, cv::Size(W, H), 0, 0, cv::INTER_NEAREST);
-
-  // Confusion: cells of a grid whose offset changes per view; in a swapped cell every class
-  // becomes another one, a related class (same coarse class) preferred.
-  const uint64_t view = mix(config_.seed, stamp_bits(frame.stamp));
-  Rng view_rng{view};
-  const int cell = config_.confusion_cell;
-  const int offset_x = static_cast<int>(view_rng.next() % cell), offset_y = static_cast<int>(view_rng.next() % cell);
-  const int cells_x = (W + offset_x + cell - 1) / cell, cells_y = (H + offset_y + cell - 1) / cell;
-  const auto& classes = rellis_classes();
-  std::vector<std::vector<int>> related(K);
-  for (int k = 0; k < K; ++k)
-    for (int j = 0; j < K; ++j)
-      if (j != k && classes[j].coarse == classes[k].coarse) related[k].push_back(j);
-  std::vector<int> cell_map(static_cast<std::size_t>(cells_x) * cells_y * K);  // cell, class -> class
-  for (int c = 0; c < cells_x * cells_y; ++c) {
-    Rng rng{mix(view, static_cast<uint64_t>(c))};
-    const bool swapped = rng.uniform() < config_.confusion_rate;
-    for (int k = 0; k < K; ++k) {
-      int to = k;
-      if (swapped) {
-        if (!related[k].empty() && rng.uniform() < config_.related_confusion) {
-          to = related[k][rng.next() % related[k].size()];
-        } else {
-          to = static_cast<int>(rng.next() % (K - 1));
-          to += to >= k;  // any class but k
-        }
-      }
-      cell_map[static_cast<std::size_t>(c) * K + k] = to;
-    }
+  cv::Mat view;
+  if (!frame.view.empty()) {
+    if (frame.view.type() != CV_16UC3) throw Error(where + " view geometry image is not 16-bit with 3 channels");
+    cv::resize(frame.view, view, cv::Size(W, H), 0, 0, cv::INTER_NEAREST);
   }
+  const auto& classes = rellis_classes();
+  const uint64_t view_key = mix(config_.seed, stamp_bits(frame.stamp));
   std::vector<int> seen(static_cast<std::size_t>(H) * W);
-  std::vector<bool> present(K, false);
   for (int y = 0; y < H; ++y) {
     const uint8_t* row = labels.ptr<uint8_t>(y);
-    for (int x = 0; x < W; ++x) {
-      const int c = (y + offset_y) / cell * cells_x + (x + offset_x) / cell;
-      const int k = cell_map[static_cast<std::size_t>(c) * K + class_row_[row[x]]];
-      seen[static_cast<std::size_t>(y) * W + x] = k;
-      present[k] = true;
-    }
+    for (int x = 0; x < W; ++x) seen[static_cast<std::size_t>(y) * W + x] = class_row_[row[x]];
   }
 
-  // Low resolution: each present class's indicator, blurred, weights its prototype.
+  // Where a real network errs (view, exposure, persistent look-alikes), and which class it shows.
+  {
+    std::vector<int> erring_rows(seen.size());
+    for (std::size_t i = 0; i < seen.size(); ++i) erring_rows[i] = classes[seen[i]].coarse == kVoidCoarse ? -1 : seen[i];
+    const sim_failures::PixelErrors errors = sim_failures::pixel_errors(config_, erring_rows, view, frame.stamp, view_key);
+    for (std::size_t i = 0; i < seen.size(); ++i)
+      if (errors.wrong[i])
+        seen[i] = wrong_class(seen[i], mix(config_.seed, 0xC401CE00ull + static_cast<uint64_t>(std::floor(
+                                                                              2.0 * errors.choice[i] + 1000.0))));
+  }
+
+  // Per-view blob swaps: cells of a grid whose offset changes per view; in a swapped cell every
+  // class becomes another one, a related class (same coarse class) preferred.
+  if (config_.confusion_rate > 0.f) {
+    Rng view_rng{view_key};
+    const int cell = config_.confusion_cell;
+    const int offset_x = static_cast<int>(view_rng.next() % cell), offset_y = static_cast<int>(view_rng.next() % cell);
+    const int cells_x = (W + offset_x + cell - 1) / cell, cells_y = (H + offset_y + cell - 1) / cell;
+    std::vector<int> cell_map(static_cast<std::size_t>(cells_x) * cells_y * K);  // cell, class -> class
+    for (int c = 0; c < cells_x * cells_y; ++c) {
+      Rng rng{mix(view_key, static_cast<uint64_t>(c))};
+      const bool swapped = rng.uniform() < config_.confusion_rate;
+      for (int k = 0; k < K; ++k) {
+        static const std::vector<int> kNoLookalikes;  // blob swaps show related or any classes
+        cell_map[static_cast<std::size_t>(c) * K + k] =
+            swapped ? pick_wrong_class(k, K, kNoLookalikes, 0.f, related_[k], config_.related_confusion, rng) : k;
+      }
+    }
+    for (int y = 0; y < H; ++y)
+      for (int x = 0; x < W; ++x) {
+        int& k = seen[static_cast<std::size_t>(y) * W + x];
+        k = cell_map[static_cast<std::size_t>((y + offset_y) / cell * cells_x + (x + offset_x) / cell) * K + k];
+      }
+  }
+  std::vector<bool> present(K, false);
+  for (const int k : seen) present[k] = true;
+
+  // Low resolution: each present class's indicator averaged over the coarse grid, upsampled
+  // bilinearly, blurred; it weights the class's prototype.
+  const int f = config_.coarse_factor;
+  const cv::Size coarse(std::max(1, (W + f - 1) / f), std::max(1, (H + f - 1) / f));
   std::vector<int> rows;
   std::vector<cv::Mat> weights;
   for (int k = 0; k < K; ++k) {
@@ -180,6 +199,11 @@ void SimulatedDenseEncoder::encode_into(const ImageFrame& frame, FeatureMap& out
     cv::Mat indicator(H, W, CV_32F);
     float* value = indicator.ptr<float>();
     for (std::size_t i = 0; i < seen.size(); ++i) value[i] = seen[i] == k ? 1.f : 0.f;
+    if (f > 1) {
+      cv::Mat small;
+      cv::resize(indicator, small, coarse, 0, 0, cv::INTER_AREA);
+      cv::resize(small, indicator, cv::Size(W, H), 0, 0, cv::INTER_LINEAR);
+    }
     if (config_.blur > 0.f) cv::GaussianBlur(indicator, indicator, cv::Size(0, 0), config_.blur);
     rows.push_back(k);
     weights.push_back(std::move(indicator));
@@ -187,13 +211,14 @@ void SimulatedDenseEncoder::encode_into(const ImageFrame& frame, FeatureMap& out
 
   // One pass per pixel: the (mostly single) weighted prototype plus a bank row, cyclically shifted
   // and signed per pixel (a shifted row of iid Gaussians is again one), then normalised.
+  const int D = config_.dim;
   const bool half = config_.output_precision == EmbeddingPrecision::kFloat16;
   out.reset(D, H, W, config_.output_precision);  // every value is written below
   tbb::parallel_for(0, H, [&](int y) {
     std::vector<float> row_scratch(half ? static_cast<std::size_t>(D) : 0);  // fp32 pixel before rounding
     for (int x = 0; x < W; ++x) {
       const std::size_t i = static_cast<std::size_t>(y) * W + x;
-      const uint64_t h = mix(view, 0x5EED0000000ull + i);
+      const uint64_t h = mix(view_key, 0x5EED0000000ull + i);
       const float* noise = noise_bank_.data() + (h % kNoiseBankSize) * D;
       const int shift = static_cast<int>((h >> 16) % D);
       const float sigma = (h >> 63) ? -config_.noise_sigma : config_.noise_sigma;

@@ -72,8 +72,10 @@ TEST(SimulatedEncoders, RelatedClassesHaveCorrelatedPrototypes) {
   for (Eigen::Index i = 0; i < p.rows(); ++i) EXPECT_NEAR(p.row(i).norm(), 1.f, 1e-5f);
 }
 
+// The clean encoder's per-view blob swaps average out over views (the realistic encoder's
+// persistent errors do not, by design: honest_accuracy_test).
 TEST(SimulatedEncoders, SingleViewIsMostlyRightButImperfectAndViewsAverageOut) {
-  const SimulatedEncoderConfig config;  // the defaults: 512 x 128 x 192
+  const SimulatedEncoderConfig config = SimulatedEncoderConfig::clean();  // 512 x 128 x 192
   SimulatedDenseEncoder encoder(config);
   const PrototypeMatrix prototypes = simulated_class_prototypes(config);
   const cv::Mat labels = scene(0.0).labels;
@@ -102,35 +104,41 @@ TEST(SimulatedEncoders, SingleViewIsMostlyRightButImperfectAndViewsAverageOut) {
 }
 
 TEST(SimulatedEncoders, DeterministicPerSeedAndStamp) {
-  SimulatedEncoderConfig config;
-  config.dim = 32;
-  config.height = 48;
-  config.width = 64;
-  SimulatedDenseEncoder a(config), b(config);
-  const FeatureMap f1 = a.encode(scene(5.0)), f2 = b.encode(scene(5.0)), f3 = a.encode(scene(5.1));
-  EXPECT_EQ(f1, f2);
-  EXPECT_NE(f1, f3);
-  config.seed = 2;
-  EXPECT_NE(SimulatedDenseEncoder(config).encode(scene(5.0)), f1);
-  EXPECT_NE(SimulatedDenseEncoder(config).model_id(), a.model_id());
+  for (const char* preset : {"clean", "realistic"}) {
+    SCOPED_TRACE(preset);
+    SimulatedEncoderConfig config = simulated_encoder_preset(preset, {});
+    config.dim = 32;
+    config.height = 48;
+    config.width = 64;
+    SimulatedDenseEncoder a(config), b(config);
+    const FeatureMap f1 = a.encode(scene(5.0)), f2 = b.encode(scene(5.0)), f3 = a.encode(scene(5.1));
+    EXPECT_EQ(f1, f2);
+    EXPECT_NE(f1, f3);
+    config.seed = 2;
+    EXPECT_NE(SimulatedDenseEncoder(config).encode(scene(5.0)), f1);
+    EXPECT_NE(SimulatedDenseEncoder(config).model_id(), a.model_id());
+  }
 }
 
 // SIMULATED half-precision output: the fp32 features rounded to fp16, nothing else; the model id
 // stays (the same embedding space), and a reused fp32 buffer switches precision.
 TEST(SimulatedEncoders, Fp16OutputIsTheFp32OutputRounded) {
-  SimulatedEncoderConfig config;
-  config.dim = 37;
-  config.height = 24;
-  config.width = 32;
-  SimulatedDenseEncoder fp32(config);
-  config.output_precision = EmbeddingPrecision::kFloat16;
-  SimulatedDenseEncoder fp16(config);
-  EXPECT_EQ(fp16.model_id(), fp32.model_id());
-  const FeatureMap wide = fp32.encode(scene(5.0));
-  FeatureMap half = fp32.encode(scene(4.0));  // an fp32 buffer to reuse
-  fp16.encode_into(scene(5.0), half);
-  EXPECT_EQ(half.precision(), EmbeddingPrecision::kFloat16);
-  EXPECT_EQ(half, wide.converted(EmbeddingPrecision::kFloat16));
+  for (const char* preset : {"clean", "realistic"}) {
+    SCOPED_TRACE(preset);
+    SimulatedEncoderConfig config = simulated_encoder_preset(preset, {});
+    config.dim = 37;
+    config.height = 24;
+    config.width = 32;
+    SimulatedDenseEncoder fp32(config);
+    config.output_precision = EmbeddingPrecision::kFloat16;
+    SimulatedDenseEncoder fp16(config);
+    EXPECT_EQ(fp16.model_id(), fp32.model_id());
+    const FeatureMap wide = fp32.encode(scene(5.0));
+    FeatureMap half = fp32.encode(scene(4.0));  // an fp32 buffer to reuse
+    fp16.encode_into(scene(5.0), half);
+    EXPECT_EQ(half.precision(), EmbeddingPrecision::kFloat16);
+    EXPECT_EQ(half, wide.converted(EmbeddingPrecision::kFloat16));
+  }
 }
 
 TEST(SimulatedEncoders, MissingOrWrongLabelsAreErrors) {
@@ -156,7 +164,7 @@ TEST(SimulatedEncoders, MissingOrWrongLabelsAreErrors) {
 }
 
 TEST(SimulatedEncoders, TextEncoderReturnsTheDenseEncodersPrototypes) {
-  SimulatedEncoderConfig config;
+  SimulatedEncoderConfig config = SimulatedEncoderConfig::clean();  // the prototypes: no failure mode involved
   config.seed = 7;
   SimulatedTextEncoder text(config);
   const PrototypeMatrix p = simulated_class_prototypes(config);

@@ -28,6 +28,7 @@ struct ImageRecord {
   std::filesystem::path rgb;       // may be empty
   std::filesystem::path labels;    // 2D label image (uint8 ids); may be empty
   std::filesystem::path features;  // precomputed C x H x W .npy; may be empty
+  std::filesystem::path view{};    // SIMULATED view geometry (synth's pylon_camera_node_sim_view); usually empty
   // The size the rgb and label images must have (the camera's, which the calibration refers to);
   // set by the sequence readers, checked from the file header before decoding. 0: not checked.
   int width = 0, height = 0;

@@ -147,6 +147,14 @@ ImageFrame load_image_frame(const ImageRecord& record, bool want_rgb, bool want_
       throw Error(fmt::format("label image {} must be 8-bit single-channel class ids, found {} channel(s) of {} bits",
                               record.labels, frame.labels.channels(), 8 * frame.labels.elemSize1()));
     if (frame.source.empty()) frame.source = record.labels.filename().string();
+    // The simulated encoder reads labels, and a SIMULATED sequence's view geometry beside them.
+    if (!record.view.empty()) {
+      // At any size (synth writes it at half the image size); the encoder resamples it like the labels.
+      frame.view = read_checked_image(record.view, cv::IMREAD_UNCHANGED, "view geometry", cv::Size(), max_pixels);
+      if (frame.view.type() != CV_16UC3)
+        throw Error(fmt::format("view geometry image {} must be 16-bit with 3 channels, found {} channel(s) of {} bits",
+                                record.view, frame.view.channels(), 8 * frame.view.elemSize1()));
+    }
   }
   return frame;
 }

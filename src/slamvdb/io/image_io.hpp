@@ -31,7 +31,8 @@ std::optional<cv::Size> parse_image_header(std::string_view bytes);
 // Throws Error naming the file if it is not a regular file or neither a PNG nor a JPEG.
 cv::Size read_image_size(const std::filesystem::path& path);
 
-// Loads the requested parts of an image record: rgb as CV_8UC3 in RGB order, labels as CV_8UC1.
+// Loads the requested parts of an image record: rgb as CV_8UC3 in RGB order, labels as CV_8UC1
+// (with them a SIMULATED sequence's view geometry, CV_16UC3, when the record has one).
 // A part whose path is empty stays empty. Throws Error naming the file if it cannot be read or
 // decoded, if its header size differs from the record's expected size (ImageRecord::width and
 // height, set by the sequence readers to the camera's size), or, for a record without an expected

@@ -115,7 +115,7 @@ Sequence read_kitti_sequence(const fs::path& dir, const ReadOptions& options) {
 
   std::size_t without_features = 0;
   for (const auto& file : image_files) {
-    ImageRecord image{stamps[frame_index(file, stamps.size(), times_file)], file, {}, {}};
+    ImageRecord image{stamps[frame_index(file, stamps.size(), times_file)], file, {}, {}, {}};
     image.width = image_size.width;
     image.height = image_size.height;
     std::error_code ec;  // an inaccessible feature file is reported when it is read

@@ -167,7 +167,7 @@ TEST(ReaderHardening, JpegSizeIsFoundBehindOtherSegmentsAndFillBytes) {
   EXPECT_EQ(parse_image_header(jpeg), cv::Size(53, 37));
   TempDir tmp;
   std::ofstream(tmp.path / "a.jpg", std::ios::binary) << jpeg;
-  EXPECT_EQ(load_image_frame({0, tmp.path / "a.jpg", {}, {}, 53, 37}, true, false).rgb.size(), cv::Size(53, 37));
+  EXPECT_EQ(load_image_frame({0, tmp.path / "a.jpg", {}, {}, {}, 53, 37}, true, false).rgb.size(), cv::Size(53, 37));
 }
 
 TEST(ReaderHardening, ImagesOfTheWrongSizeAreRefusedNotResized) {

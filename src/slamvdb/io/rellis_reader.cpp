@@ -62,6 +62,8 @@ std::vector<StampedImage> collect_images(const fs::path& dir, std::vector<std::s
     const fs::path features = feature_dir / (stem + ".npy");
     std::error_code ec;  // an inaccessible feature file is reported when it is read
     if (fs::exists(features, ec) || ec) record.features = features;
+    const fs::path view = dir / kRellisSimViewDir / (stem + ".png");
+    if (fs::exists(view, ec) || ec) record.view = view;
     without_rgb += record.rgb.empty();
     without_labels += record.labels.empty();
     without_features += record.features.empty();

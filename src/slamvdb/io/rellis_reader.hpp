@@ -21,6 +21,8 @@ inline constexpr std::string_view kRellisScanDir = "os1_cloud_node_kitti_bin";
 inline constexpr std::string_view kRellisScanLabelDir = "os1_cloud_node_semantickitti_label_id";
 inline constexpr std::string_view kRellisImageDir = "pylon_camera_node";
 inline constexpr std::string_view kRellisImageLabelDir = "pylon_camera_node_label_id";
+// Not in RELLIS-3D: a SIMULATED sequence's view geometry images (synth/sequence_writer.hpp).
+inline constexpr std::string_view kRellisSimViewDir = "pylon_camera_node_sim_view";
 
 // Largest transforms.yaml read: 1 MiB (it holds one transform).
 inline constexpr std::uint64_t kMaxYamlBytes = std::uint64_t{1} << 20;

@@ -8,8 +8,8 @@
 
 namespace slamvdb {
 
-GlobalIndex::GlobalIndex(double cell_size, int dim)
-    : cell_size_(cell_size), inv_cell_size_(1.0 / cell_size), dim_(dim) {
+GlobalIndex::GlobalIndex(double cell_size, int dim, bool single_view)
+    : cell_size_(cell_size), inv_cell_size_(1.0 / cell_size), dim_(dim), single_view_(single_view) {
   if (!(cell_size > 0) || !std::isfinite(cell_size)) throw Error(fmt::format("index cell size {} must be > 0", cell_size));
 }
 
@@ -95,52 +95,96 @@ void GlobalIndex::apply_changes(uint32_t slot, const SemanticLayer::Changes& cha
     if (b.layer->count_of(h) > 0) insert(cell_of_entry(b, h), {slot, h});
 }
 
+std::size_t GlobalIndex::best_ref(const Cell& c) const {
+  std::size_t best = 0;
+  for (std::size_t k = 1; k < c.refs.size(); ++k)
+    if (bindings_[c.refs[k].submap].layer->weight_of(c.refs[k].handle) >
+        bindings_[c.refs[best].submap].layer->weight_of(c.refs[best].handle))
+      best = k;
+  return best;
+}
+
 IndexedVoxel GlobalIndex::read(std::size_t i, float* scratch) const {
   const Cell& c = cells_[i];
   IndexedVoxel v;
   v.cell = c.key;
   v.position_world = center_of_key(c.key, cell_size_);
   v.entries = static_cast<uint32_t>(c.refs.size());
-  if (c.refs.size() == 1) {
-    const SemanticLayer& layer = *bindings_[c.refs[0].submap].layer;
-    v.count = layer.count_of(c.refs[0].handle);
-    v.embedding = layer.embedding_of(c.refs[0].handle);
+  if (c.refs.size() == 1 || single_view_) {
+    uint64_t count = 0;
+    for (const EntryRef& r : c.refs) count += bindings_[r.submap].layer->count_of(r.handle);
+    const EntryRef& r = c.refs[c.refs.size() == 1 ? 0 : best_ref(c)];
+    const SemanticLayer& layer = *bindings_[r.submap].layer;
+    v.count = static_cast<uint32_t>(std::min<uint64_t>(count, UINT32_MAX));
+    v.weight = layer.weight_of(r.handle);
+    v.embedding = layer.embedding_of(r.handle);
     return v;
   }
-  // Several submaps saw this place: the count-weighted mean (paper 6.2.3), summed count.
+  // Several submaps saw this place: the weighted mean (paper 6.2.3: count-weighted), summed count.
   uint64_t total = 0;
-  for (const EntryRef& r : c.refs) total += bindings_[r.submap].layer->count_of(r.handle);
+  double weight = 0;
+  for (const EntryRef& r : c.refs) {
+    total += bindings_[r.submap].layer->count_of(r.handle);
+    weight += bindings_[r.submap].layer->weight_of(r.handle);
+  }
   const auto dim = static_cast<std::size_t>(dim_);
   std::fill_n(scratch, dim, 0.0f);
   for (const EntryRef& r : c.refs) {
     const SemanticLayer& layer = *bindings_[r.submap].layer;
-    const float w = static_cast<float>(static_cast<double>(layer.count_of(r.handle)) / static_cast<double>(total));
+    const float w = static_cast<float>(static_cast<double>(layer.weight_of(r.handle)) / weight);
     kernels::add_scaled(scratch, layer.embedding_of(r.handle), w, dim);
   }
   v.count = static_cast<uint32_t>(std::min<uint64_t>(total, UINT32_MAX));
+  v.weight = static_cast<float>(weight);
   v.embedding = {scratch, EmbeddingPrecision::kFloat32};
   return v;
+}
+
+VoxelStatistics GlobalIndex::statistics(std::size_t i, const float* mean) const {
+  const Cell& c = cells_[i];
+  if (c.refs.size() == 1 || single_view_) {
+    const EntryRef& r = c.refs[c.refs.size() == 1 ? 0 : best_ref(c)];
+    return bindings_[r.submap].layer->statistics_of(r.handle);
+  }
+  // Chan et al.: sum_k S_k + sum_k W_k |m_k - m|^2 about the combined mean m.
+  VoxelStatistics s{0.f, 0.f};
+  const auto dim = static_cast<std::size_t>(dim_);
+  for (const EntryRef& r : c.refs) {
+    const SemanticLayer& layer = *bindings_[r.submap].layer;
+    const VoxelStatistics e = layer.statistics_of(r.handle);
+    s.weight += e.weight;
+    s.spread += e.spread + e.weight * kernels::squared_distance(layer.embedding_of(r.handle), mean, dim);
+  }
+  return s;
 }
 
 GlobalIndex::Parts GlobalIndex::parts(std::size_t i, float* scratch) const {
   const Cell& c = cells_[i];
   Parts p;
-  if (c.refs.size() > 2) {
+  if (c.refs.size() > 2 && !single_view_) {
     const IndexedVoxel v = read(i, scratch);
     p.embedding.view[0] = v.embedding, p.count = v.count;
     return p;
   }
   uint64_t total = 0;
+  double weight = 0;
   for (std::size_t k = 0; k < c.refs.size(); ++k) {
     const SemanticLayer& layer = *bindings_[c.refs[k].submap].layer;
-    p.embedding.view[k] = layer.embedding_of(c.refs[k].handle);
     total += layer.count_of(c.refs[k].handle);
+    weight += layer.weight_of(c.refs[k].handle);
   }
-  p.embedding.n = static_cast<uint32_t>(c.refs.size());
-  for (std::size_t k = 0; k < c.refs.size(); ++k)
-    p.embedding.weight[k] = static_cast<float>(static_cast<double>(bindings_[c.refs[k].submap].layer->count_of(c.refs[k].handle)) /
-                                     static_cast<double>(total));
   p.count = static_cast<uint32_t>(std::min<uint64_t>(total, UINT32_MAX));
+  if (c.refs.size() == 1 || single_view_) {
+    const EntryRef& r = c.refs[c.refs.size() == 1 ? 0 : best_ref(c)];
+    p.embedding.view[0] = bindings_[r.submap].layer->embedding_of(r.handle);
+    return p;
+  }
+  p.embedding.n = 2;
+  for (std::size_t k = 0; k < 2; ++k) {
+    const SemanticLayer& layer = *bindings_[c.refs[k].submap].layer;
+    p.embedding.view[k] = layer.embedding_of(c.refs[k].handle);
+    p.embedding.weight[k] = static_cast<float>(static_cast<double>(layer.weight_of(c.refs[k].handle)) / weight);
+  }
   return p;
 }
 

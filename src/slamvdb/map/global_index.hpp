@@ -1,7 +1,9 @@
 #pragma once
 // The global lookup index (paper section 6.2.3): a world-frame grid whose cells refer to the
 // semantic entries of the submaps at their current world positions. Reading a cell gives the
-// count-weighted mean of all entries in it and their summed count. Every retrieval reads the map
+// weighted mean of all entries in it (weighted by their observations' weight sums, which are their
+// counts under the paper's rule: the paper's count-weighted mean) and their summed count; its
+// statistics combine the entries' by Chan's rule (statistics()). Every retrieval reads the map
 // through it, so a pose correction or a merge is visible to every reader at once without
 // re-integrating any sensor data.
 //
@@ -24,7 +26,8 @@ struct IndexedVoxel {
   Vec3d position_world;     // the cell centre
   uint32_t count = 0;       // summed observation count of the entries in the cell
   uint32_t entries = 0;     // how many submap entries the cell holds
-  EmbeddingView embedding;  // their count-weighted mean (a view of the submap's storage when one)
+  float weight = 0.f;       // summed observation weight (= count under the paper's rule)
+  EmbeddingView embedding;  // their weighted mean (a view of the submap's storage when one)
 };
 
 class GlobalIndex {
@@ -34,7 +37,9 @@ class GlobalIndex {
     SemanticLayer::Handle handle;
   };
 
-  explicit GlobalIndex(double cell_size, int dim);
+  // single_view: a cell of several entries reads as its entry of the largest weight, not their mean
+  // (SemanticParams::single_view).
+  explicit GlobalIndex(double cell_size, int dim, bool single_view = false);
 
   // Binds a submap's semantic layer (the layer must stay at its address while bound) and bins
   // all its entries at T_world_submap.
@@ -63,6 +68,11 @@ class GlobalIndex {
     uint32_t count = 0;
   };
   Parts parts(std::size_t i, float* scratch) const;
+
+  // The statistics of cell i's observations: weights summed, spreads combined with the squared
+  // distances of the entries' means from `mean` (the cell's mean as read(), fp32; used only for a
+  // cell of several entries).
+  VoxelStatistics statistics(std::size_t i, const float* mean) const;
 
   // The cell at a world position, if it is not empty.
   std::optional<IndexedVoxel> read_at(const Vec3d& p_world, float* scratch) const;
@@ -96,6 +106,9 @@ class GlobalIndex {
 
   double cell_size_, inv_cell_size_;
   int dim_;
+  bool single_view_;
+  // The entry of the largest weight among a cell's refs (single_view).
+  std::size_t best_ref(const Cell& c) const;
   std::vector<Cell> cells_;                                  // dense: reads split it into ranges
   absl::flat_hash_map<IndexCellKey, uint32_t> cell_slot_;    // cell key -> position in cells_
   std::vector<Binding> bindings_;                            // by submap slot

@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <cmath>
 #include <cstring>
 
 #include "slamvdb/core/error.hpp"
@@ -39,54 +40,13 @@ SemanticLayer::Handle SemanticLayer::allocate(const VoxelKey& key) {
   Chunk& c = chunk(h);
   c.keys[h % kChunkSlots] = key;
   c.counts[h % kChunkSlots] = 0;
+  c.stats[h % kChunkSlots] = {};
   index_.emplace(key, h);
   if (tracking_) changes_.added.push_back(h);
   return h;
 }
 
-void SemanticLayer::integrate(const VoxelKey& key, const float* observation) {
-  const auto it = index_.find(key);
-  const Handle h = it != index_.end() ? it->second : allocate(key);
-  uint32_t& n = count_ref(h);
-  const float w = 1.0f / (static_cast<float>(n) + 1.0f);  // n = 0: the entry becomes the observation
-  const auto dim = static_cast<std::size_t>(params_.dim);
-  if (params_.precision == EmbeddingPrecision::kFloat16) {
-    auto* v = reinterpret_cast<uint16_t*>(embedding(h));
-    if (n == 0) std::fill_n(v, dim, uint16_t{0});
-    kernels::running_mean(v, observation, w, dim);
-  } else {
-    auto* v = reinterpret_cast<float*>(embedding(h));
-    if (n == 0) std::fill_n(v, dim, 0.0f);
-    kernels::running_mean(v, observation, w, dim);
-  }
-  n = n == UINT32_MAX ? n : n + 1;
-}
-
-void SemanticLayer::accumulate(const VoxelKey& key, const float* mean, uint32_t count) {
-  if (count == 0) return;
-  const auto it = index_.find(key);
-  const Handle h = it != index_.end() ? it->second : allocate(key);
-  uint32_t& n = count_ref(h);
-  const uint64_t total = uint64_t{n} + count;
-  const auto w = static_cast<float>(static_cast<double>(count) / static_cast<double>(total));
-  const auto dim = static_cast<std::size_t>(params_.dim);
-  if (params_.precision == EmbeddingPrecision::kFloat16) {
-    auto* v = reinterpret_cast<uint16_t*>(embedding(h));
-    if (n == 0) std::fill_n(v, dim, uint16_t{0});
-    kernels::running_mean(v, mean, w, dim);
-  } else {
-    auto* v = reinterpret_cast<float*>(embedding(h));
-    if (n == 0) std::fill_n(v, dim, 0.0f);
-    kernels::running_mean(v, mean, w, dim);
-  }
-  n = static_cast<uint32_t>(std::min<uint64_t>(total, UINT32_MAX));
-}
-
-void SemanticLayer::set(const VoxelKey& key, const float* values, uint32_t count) {
-  if (count == 0) throw Error("semantic entry count must be >= 1");
-  const auto it = index_.find(key);
-  const Handle h = it != index_.end() ? it->second : allocate(key);
-  count_ref(h) = count;
+void SemanticLayer::store_embedding(Handle h, const float* values) {
   const auto dim = static_cast<std::size_t>(params_.dim);
   if (params_.precision == EmbeddingPrecision::kFloat16)
     kernels::float_to_half(values, reinterpret_cast<uint16_t*>(embedding(h)), dim);
@@ -94,9 +54,97 @@ void SemanticLayer::set(const VoxelKey& key, const float* values, uint32_t count
     std::copy_n(values, dim, reinterpret_cast<float*>(embedding(h)));
 }
 
+void SemanticLayer::zero_embedding(Handle h) {
+  const auto dim = static_cast<std::size_t>(params_.dim);
+  if (params_.precision == EmbeddingPrecision::kFloat16)
+    std::fill_n(reinterpret_cast<uint16_t*>(embedding(h)), dim, uint16_t{0});
+  else
+    std::fill_n(reinterpret_cast<float*>(embedding(h)), dim, 0.0f);
+}
+
+float SemanticLayer::step_embedding(Handle h, const float* x, float step) {
+  const auto dim = static_cast<std::size_t>(params_.dim);
+  return params_.precision == EmbeddingPrecision::kFloat16
+             ? kernels::running_mean_sq(reinterpret_cast<uint16_t*>(embedding(h)), x, step, dim)
+             : kernels::running_mean_sq(reinterpret_cast<float*>(embedding(h)), x, step, dim);
+}
+
+void SemanticLayer::integrate(const VoxelKey& key, const float* observation, float weight) {
+  const auto it = index_.find(key);
+  const Handle h = it != index_.end() ? it->second : allocate(key);
+  uint32_t& n = count_ref(h);
+  VoxelStatistics& st = stats_ref(h);
+  if (n == 0) {
+    st = {0.f, 0.f};
+    zero_embedding(h);
+  }
+  // West (1979): W' = W + w, d = x - v, v += (w / W') d, S += w (W / W') |d|^2. With w = 1 the
+  // weight sum is the count n exactly, and the step Eq. 6.1's 1 / (n + 1) as it was computed before.
+  const float total = st.weight + weight;
+  const float step = weight / total;
+  const float d2 = step_embedding(h, observation, step);
+  if (n > 0) st.spread += weight * (st.weight / total) * d2;
+  st.weight = total;
+  n = n == UINT32_MAX ? n : n + 1;
+}
+
+void SemanticLayer::keep_best(const VoxelKey& key, const float* observation, float weight) {
+  const auto it = index_.find(key);
+  const Handle h = it != index_.end() ? it->second : allocate(key);
+  uint32_t& n = count_ref(h);
+  VoxelStatistics& st = stats_ref(h);
+  if (n == 0 || weight > st.weight) {
+    store_embedding(h, observation);
+    st = {weight, 0.f};
+  }
+  n = n == UINT32_MAX ? n : n + 1;
+}
+
+void SemanticLayer::accumulate(const VoxelKey& key, const float* mean, uint32_t count, VoxelStatistics stats) {
+  if (count == 0) return;
+  const auto it = index_.find(key);
+  const Handle h = it != index_.end() ? it->second : allocate(key);
+  uint32_t& n = count_ref(h);
+  VoxelStatistics& st = stats_ref(h);
+  const uint64_t total = uint64_t{n} + count;
+  if (n == 0) {
+    st = {0.f, 0.f};
+    zero_embedding(h);
+  }
+  if (params_.single_view) {
+    if (n == 0 || stats.weight > st.weight) {
+      store_embedding(h, mean);
+      st = stats;
+    }
+    n = static_cast<uint32_t>(std::min<uint64_t>(total, UINT32_MAX));
+    return;
+  }
+  // Weighted by the statistics' weights (the counts under the paper's rule, as before).
+  const double w_total = static_cast<double>(st.weight) + static_cast<double>(stats.weight);
+  const auto w = static_cast<float>(w_total > 0 ? static_cast<double>(stats.weight) / w_total
+                                                : static_cast<double>(count) / static_cast<double>(total));
+  const float d2 = step_embedding(h, mean, w);
+  st = n == 0 ? stats : combine_statistics(st, stats, d2);
+  n = static_cast<uint32_t>(std::min<uint64_t>(total, UINT32_MAX));
+}
+
+void SemanticLayer::set(const VoxelKey& key, const float* values, uint32_t count) {
+  set(key, values, count, unknown_statistics(count));
+}
+
+void SemanticLayer::set(const VoxelKey& key, const float* values, uint32_t count, VoxelStatistics stats) {
+  if (count == 0) throw Error("semantic entry count must be >= 1");
+  const auto it = index_.find(key);
+  const Handle h = it != index_.end() ? it->second : allocate(key);
+  count_ref(h) = count;
+  stats_ref(h) = stats;
+  store_embedding(h, values);
+}
+
 void SemanticLayer::insert_raw(std::span<const VoxelKey> keys, std::span<const uint32_t> counts,
-                               const std::byte* embeddings) {
+                               const std::byte* embeddings, std::span<const VoxelStatistics> stats) {
   if (keys.size() != counts.size()) throw Error("insert_raw: keys and counts differ in length");
+  if (!stats.empty() && stats.size() != keys.size()) throw Error("insert_raw: keys and statistics differ in length");
   index_.reserve(index_.size() + keys.size());
   for (std::size_t i = 0; i < keys.size(); ++i) {
     if (counts[i] == 0) throw Error(fmt::format("semantic entry {} has a zero count", i));
@@ -104,6 +152,7 @@ void SemanticLayer::insert_raw(std::span<const VoxelKey> keys, std::span<const u
       throw Error(fmt::format("semantic key ({}, {}, {}) appears twice", keys[i].x(), keys[i].y(), keys[i].z()));
     const Handle h = allocate(keys[i]);
     count_ref(h) = counts[i];
+    stats_ref(h) = stats.empty() ? unknown_statistics(counts[i]) : stats[i];
     std::memcpy(embedding(h), embeddings + i * bytes_per_embedding_, bytes_per_embedding_);
   }
 }

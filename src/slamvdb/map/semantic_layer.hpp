@@ -3,6 +3,11 @@
 // observation counter (paper Eq. 6.1). Most voxels are never seen by the camera, so this is a
 // key -> entry store beside the occupancy grid rather than a field of every voxel.
 //
+// Beyond the paper, every entry also keeps the statistics of its observations that a confidence
+// needs (8 bytes: VoxelStatistics): the sum of their weights (the count under Eq. 6.1, whose
+// observations all weigh 1) and their spread, the weighted sum of squared distances from the mean,
+// updated with West's weighted form of Welford's algorithm in the same pass as the mean.
+//
 // Entries live in chunks of kChunkSlots slots (keys, counts and embeddings side by side), so that
 // a query can read them as contiguous blocks (for_each_chunk) and the memory per entry stays at
 // the payload (no doubling on growth). An entry's handle (its slot) is stable until the entry is
@@ -12,6 +17,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <limits>
 #include <memory>
 #include <optional>
 #include <span>
@@ -32,7 +38,33 @@ struct SemanticParams {
   // Storage precision at rest (finished submaps, files). fp16 is the default: at 512-d it halves
   // memory for a cosine error below 1e-5 (see semantic_layer_test and README).
   EmbeddingPrecision precision = EmbeddingPrecision::kFloat16;
+  // A baseline, not a fusion rule: each voxel keeps its single best observation (the one of the
+  // largest weight: fusion gives the nearest view the largest) instead of a mean, and so does the
+  // global index across submaps. What classifying from one view per voxel scores.
+  bool single_view = false;
 };
+
+// An entry's observation statistics. weight: the sum of the observations' weights (= count under
+// the paper's rule). spread: sum_i w_i |x_i - mean|^2, NaN when unknown (entries of maps saved
+// before statistics were kept; they load with weight = count).
+struct VoxelStatistics {
+  float weight = 0.f;
+  float spread = 0.f;
+  bool known() const { return spread == spread; }
+};
+
+// The statistics of `count` observations whose spread is not known (weight = count, spread NaN).
+inline VoxelStatistics unknown_statistics(uint32_t count) {
+  return {static_cast<float>(count), std::numeric_limits<float>::quiet_NaN()};
+}
+
+// Chan et al.'s pairwise combination of two sets' statistics, given the squared distance between
+// their means: weights add, spreads add plus wa wb / (wa + wb) |ma - mb|^2.
+inline VoxelStatistics combine_statistics(VoxelStatistics a, VoxelStatistics b, float squared_mean_distance) {
+  const float w = a.weight + b.weight;
+  if (!(w > 0.f)) return {w, a.spread + b.spread};
+  return {w, a.spread + b.spread + a.weight * b.weight / w * squared_mean_distance};
+}
 
 class SemanticLayer {
  public:
@@ -46,15 +78,29 @@ class SemanticLayer {
   SemanticLayer(SemanticLayer&&) = default;
   SemanticLayer& operator=(SemanticLayer&&) = default;
 
-  // Eq. 6.1: v <- (n v + x) / (n + 1), n <- n + 1; a new entry starts at n = 0.
-  void integrate(const VoxelKey& key, const float* observation);
-  // Eq. 6.1 for two means (merges, resampling): v <- (n v + c m) / (n + c), n <- n + c.
-  void accumulate(const VoxelKey& key, const float* mean, uint32_t count);
-  // Writes an entry as is. count must be >= 1.
+  // Eq. 6.1 generalised to a weighted mean: W <- W + w, v <- v + (w / W)(x - v), n <- n + 1, the
+  // spread by West's update. weight 1 (the paper's rule) gives Eq. 6.1 bit for bit: v <- (n v + x) /
+  // (n + 1). A new entry starts at n = 0. weight must be > 0.
+  void integrate(const VoxelKey& key, const float* observation, float weight = 1.0f);
+  // The single-view baseline's rule (params.single_view): the entry becomes the observation when it
+  // is new or `weight` exceeds the kept observation's; n <- n + 1 either way.
+  void keep_best(const VoxelKey& key, const float* observation, float weight);
+  // Eq. 6.1 for two means (merges, resampling): v <- (W v + W' m) / (W + W'), n <- n + c, the
+  // statistics combined (combine_statistics); under single_view the entry of larger weight wins.
+  void accumulate(const VoxelKey& key, const float* mean, uint32_t count, VoxelStatistics stats);
+  // Without statistics: weight = count and the spread unknown (NaN; 0 would claim a perfectly
+  // consistent voxel, the most confident value).
+  void accumulate(const VoxelKey& key, const float* mean, uint32_t count) {
+    accumulate(key, mean, count, unknown_statistics(count));
+  }
+  // Writes an entry as is. count must be >= 1; statistics default to weight = count, spread unknown.
   void set(const VoxelKey& key, const float* embedding, uint32_t count);
-  // Bulk insert (map loading): n new keys, counts >= 1, n x dim values in this layer's precision.
-  // Throws Error on a zero count or a key that is already present.
-  void insert_raw(std::span<const VoxelKey> keys, std::span<const uint32_t> counts, const std::byte* embeddings);
+  void set(const VoxelKey& key, const float* embedding, uint32_t count, VoxelStatistics stats);
+  // Bulk insert (map loading): n new keys, counts >= 1, n x dim values in this layer's precision,
+  // and their statistics (empty: unknown, weight = count). Throws Error on a zero count or a key
+  // that is already present.
+  void insert_raw(std::span<const VoxelKey> keys, std::span<const uint32_t> counts, const std::byte* embeddings,
+                  std::span<const VoxelStatistics> stats = {});
   bool erase(const VoxelKey& key);
 
   std::optional<Handle> find(const VoxelKey& key) const;
@@ -66,6 +112,8 @@ class SemanticLayer {
   // Entry accessors; valid handles come from find(), for_each() or the change log.
   const VoxelKey& key_of(Handle h) const { return chunk(h).keys[h % kChunkSlots]; }
   uint32_t count_of(Handle h) const { return chunk(h).counts[h % kChunkSlots]; }
+  VoxelStatistics statistics_of(Handle h) const { return chunk(h).stats[h % kChunkSlots]; }
+  float weight_of(Handle h) const { return chunk(h).stats[h % kChunkSlots].weight; }
   EmbeddingView embedding_of(Handle h) const { return {embedding(h), params_.precision}; }
   void read(Handle h, float* out) const;  // decodes the embedding to fp32
 
@@ -78,6 +126,7 @@ class SemanticLayer {
     std::size_t slots;
     const VoxelKey* keys;
     const uint32_t* counts;
+    const VoxelStatistics* stats;
     const std::byte* embeddings;  // slots x dim values in `precision`, row after row
     EmbeddingPrecision precision;
   };
@@ -86,8 +135,8 @@ class SemanticLayer {
     for (std::size_t c = 0; c < chunks_.size(); ++c) {
       const Chunk& ch = *chunks_[c];
       const std::size_t slots = std::min(kChunkSlots, slots_used_ - c * kChunkSlots);
-      f(ChunkView{static_cast<Handle>(c * kChunkSlots), slots, ch.keys.data(), ch.counts.data(), ch.embeddings.get(),
-                  params_.precision});
+      f(ChunkView{static_cast<Handle>(c * kChunkSlots), slots, ch.keys.data(), ch.counts.data(), ch.stats.data(),
+                  ch.embeddings.get(), params_.precision});
     }
   }
   template <class F>  // f(Handle) for every entry, in storage order
@@ -113,6 +162,7 @@ class SemanticLayer {
   struct Chunk {
     std::array<VoxelKey, kChunkSlots> keys;
     std::array<uint32_t, kChunkSlots> counts{};  // 0 marks a free slot
+    std::array<VoxelStatistics, kChunkSlots> stats{};
     std::unique_ptr<std::byte[]> embeddings;
   };
   Handle allocate(const VoxelKey& key);
@@ -122,6 +172,12 @@ class SemanticLayer {
     return chunks_[h / kChunkSlots]->embeddings.get() + (h % kChunkSlots) * bytes_per_embedding_;
   }
   uint32_t& count_ref(Handle h) { return chunk(h).counts[h % kChunkSlots]; }
+  VoxelStatistics& stats_ref(Handle h) { return chunk(h).stats[h % kChunkSlots]; }
+  // h's embedding in the layer's precision: written from dim floats, zeroed, or moved a step
+  // towards x (v += step (x - v), returning |x - v_old|^2).
+  void store_embedding(Handle h, const float* values);
+  void zero_embedding(Handle h);
+  float step_embedding(Handle h, const float* x, float step);
 
   SemanticParams params_;
   std::size_t bytes_per_embedding_;

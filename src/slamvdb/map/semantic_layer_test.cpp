@@ -197,6 +197,26 @@ TEST(SemanticLayer, AccumulateIsTheCountWeightedMean) {
   }
 }
 
+// An entry written or merged without statistics does not claim to be perfectly consistent (spread
+// 0, the most confident value): its spread is unknown, and stays unknown when combined; an entry
+// fused from observations knows its spread.
+TEST(SemanticLayer, EntriesWithoutStatisticsHaveAnUnknownSpread) {
+  SemanticLayer layer({2, EmbeddingPrecision::kFloat32});
+  const float a[2] = {1.0f, 0.0f}, b[2] = {0.0f, 1.0f};
+  layer.set({0, 0, 0}, a, 3);
+  layer.accumulate({1, 0, 0}, b, 4);
+  layer.integrate({2, 0, 0}, a);
+  layer.integrate({2, 0, 0}, b);
+  for (const auto& [key, weight] : {std::pair{VoxelKey{0, 0, 0}, 3.f}, std::pair{VoxelKey{1, 0, 0}, 4.f}}) {
+    EXPECT_FALSE(layer.statistics_of(*layer.find(key)).known());
+    EXPECT_EQ(layer.statistics_of(*layer.find(key)).weight, weight);
+  }
+  EXPECT_TRUE(layer.statistics_of(*layer.find({2, 0, 0})).known());
+  layer.accumulate({2, 0, 0}, b, 1);  // unknown wins in a combination
+  EXPECT_FALSE(layer.statistics_of(*layer.find({2, 0, 0})).known());
+  EXPECT_EQ(layer.statistics_of(*layer.find({2, 0, 0})).weight, 3.f);
+}
+
 TEST(SemanticLayer, ConvertingPrecisionKeepsHandlesAndValues) {
   SemanticLayer layer({8, EmbeddingPrecision::kFloat32});
   std::mt19937 rng(3);

@@ -41,7 +41,7 @@ struct SemanticMap::ReadGuard {
 };
 
 SemanticMap::SemanticMap(const MapParams& params, MapInfo info)
-    : params_(params), info_(std::move(info)), index_(params.index_cell(), params.semantic.dim) {
+    : params_(params), info_(std::move(info)), index_(params.index_cell(), params.semantic.dim, params.semantic.single_view) {
   params_.validate();
 }
 

@@ -12,6 +12,7 @@
 // Precision. The active submap accumulates embeddings in fp32, because Eq. 6.1's update
 // (x - v) / (n + 1) falls below half an fp16 ulp after about a thousand views and the mean would
 // stop moving; a finished submap is stored in params.semantic.precision (fp16 by default).
+#include <array>
 #include <functional>
 #include <map>
 #include <memory>
@@ -20,6 +21,7 @@
 #include <shared_mutex>
 #include <span>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "slamvdb/map/colour_basis.hpp"
@@ -29,6 +31,10 @@
 
 namespace slamvdb {
 
+// The fusion rules a map may record (MapInfo::fusion), in the order of FusionWeighting
+// (fusion/projective_fusion.hpp, which converts them): the one list every check uses.
+inline constexpr std::array<std::string_view, 3> kFusionRuleNames = {"paper", "quality", "single-view"};
+
 // Every member has a default, so that an aggregate initialiser may name only some of them
 // ({.model_id = ..., .source = ...}) without -Wmissing-field-initializers.
 struct MapInfo {
@@ -37,6 +43,10 @@ struct MapInfo {
   std::string source{};               // what the map was built from (dataset path, simulated or not)
   std::string config{};               // how: the effective options of the command that made it (YAML)
   std::optional<ColourBasis> colour_basis{};  // the colours it is drawn in (see colour_basis.hpp)
+  // How views were fused (projective_fusion.hpp: "paper", "quality", "single-view"); maps saved
+  // before this was recorded were made with the paper's rule.
+  std::string fusion = "paper";
+  std::string features{};             // the feature source's settings (the simulated encoder's failure modes)
 };
 
 struct MergeOptions {

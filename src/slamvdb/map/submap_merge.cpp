@@ -24,7 +24,8 @@ struct Resampler {
 struct SourceCell {
   float log_odds = -std::numeric_limits<float>::infinity();  // max over the source voxels
   uint64_t count = 0;
-  std::vector<float> mean;  // count-weighted, when count > 0
+  VoxelStatistics stats;    // combined (weights summed, spreads by Chan's rule)
+  std::vector<float> mean;  // weight-weighted, when count > 0
 };
 
 }  // namespace
@@ -66,10 +67,18 @@ MergeReport merge_into(VoxelMap& target, const VoxelMap& source, const Pose& T_t
     const auto h = source.semantics().find(k);
     if (!h) return;
     const uint32_t n = source.semantics().count_of(*h);
+    const VoxelStatistics st = source.semantics().statistics_of(*h);
     source.semantics().read(*h, embedding.data());
     if (c.mean.empty()) c.mean.assign(dim, 0.0f);
-    const float w = static_cast<float>(static_cast<double>(n) / static_cast<double>(c.count + n));
-    kernels::running_mean(c.mean.data(), embedding.data(), w, dim);
+    if (source.semantics().params().single_view) {  // the baseline keeps its best observation
+      if (c.count == 0 || st.weight > c.stats.weight) c.mean = embedding, c.stats = st;
+    } else {
+      const double total = static_cast<double>(c.stats.weight) + static_cast<double>(st.weight);
+      const float w = static_cast<float>(total > 0 ? static_cast<double>(st.weight) / total
+                                                   : static_cast<double>(n) / static_cast<double>(c.count + n));
+      const float d2 = kernels::running_mean_sq(c.mean.data(), embedding.data(), w, dim);
+      c.stats = c.count == 0 ? st : combine_statistics(c.stats, st, d2);
+    }
     c.count += n;
   });
 
@@ -84,7 +93,8 @@ MergeReport merge_into(VoxelMap& target, const VoxelMap& source, const Pose& T_t
     const std::optional<float> before = grid.log_odds(k);
     const float lo = before ? std::clamp(*before + c->log_odds, op.clamp_min, op.clamp_max) : c->log_odds;
     grid.set_log_odds(k, lo);
-    if (c->count > 0) layer.accumulate(k, c->mean.data(), static_cast<uint32_t>(std::min<uint64_t>(c->count, UINT32_MAX)));
+    if (c->count > 0)
+      layer.accumulate(k, c->mean.data(), static_cast<uint32_t>(std::min<uint64_t>(c->count, UINT32_MAX)), c->stats);
     if (lo < op.occupied_threshold) {  // a semantic entry needs a surface; say what is dropped
       if (const auto h = layer.find(k)) {
         report.counts_dropped_free += layer.count_of(*h);

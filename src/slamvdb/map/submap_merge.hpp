@@ -6,9 +6,10 @@
 // grid and lands in the target voxel containing that point (nearest-centre resampling). Source
 // voxels that land in the same target voxel are combined first: their log-odds by the maximum
 // (within one map, a hit wins, as in OctoMap's per-scan rule) and their semantic entries by the
-// count-weighted mean with summed counts. The result is then combined with the target: log-odds
-// added and clamped (independent evidence), semantic entries by the count-weighted mean (Eq. 6.1
-// generalised to two counts).
+// mean weighted by their observations' weight sums (their counts under the paper's rule), counts
+// summed, statistics combined (Chan's rule). The result is then combined with the target: log-odds
+// added and clamped (independent evidence), semantic entries by the same weighted mean (Eq. 6.1
+// generalised to two counts). Single-view layers (a baseline) keep the entry of larger weight.
 #include <cstdint>
 #include <string>
 #include <vector>

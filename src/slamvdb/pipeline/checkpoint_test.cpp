@@ -61,7 +61,7 @@ class Checkpoints : public ::testing::Test {
                        shell_quote(sequence().string()), shell_quote(out.string()));
   }
   static std::unique_ptr<FeatureSource> features() {
-    SimulatedEncoderConfig c;
+    SimulatedEncoderConfig c = SimulatedEncoderConfig::clean();  // the mapping mechanics, not the failure modes
     c.dim = 16, c.width = 64, c.height = 40;
     return std::make_unique<EncoderFeatureSource>(std::make_unique<SimulatedDenseEncoder>(c),
                                                   EncoderFeatureSource::Input::kLabels);
@@ -197,6 +197,14 @@ TEST_F(Checkpoints, ResumeRefusesAnotherConfigurationAndAMissingFile) {
   const auto other = run_cli(map_command(file("small.svdb")) + " --resume --voxel-size 0.5");
   EXPECT_EQ(other.exit_code, 1) << other.output;
   EXPECT_NE(other.output.find("--voxel-size"), std::string::npos) << other.output;
+  // The same embedding space (model id) from an encoder with other failure modes, or another
+  // fusion rule, would mix two maps in one file.
+  const auto clean = run_cli(map_command(file("small.svdb")) + " --resume --sim-encoder clean");
+  EXPECT_EQ(clean.exit_code, 1) << clean.output;
+  EXPECT_NE(clean.output.find("--sim-encoder"), std::string::npos) << clean.output;
+  const auto rule = run_cli(map_command(file("small.svdb")) + " --resume --fusion-weighting quality");
+  EXPECT_EQ(rule.exit_code, 1) << rule.output;
+  EXPECT_NE(rule.output.find("--fusion-weighting"), std::string::npos) << rule.output;
 }
 
 }  // namespace

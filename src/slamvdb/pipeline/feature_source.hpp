@@ -16,6 +16,7 @@ class FeatureSource {
   // The same into `out`, reusing its buffer where the source can (DenseImageEncoder::encode_into).
   virtual void features_into(const ImageRecord& record, FeatureMap& out) { out = features_for(record); }
   virtual std::string model_id() const = 0;
+  virtual std::string description() const { return model_id(); }  // recorded in maps (MapInfo::features)
 };
 
 // Loads the image parts the encoder reads (rgb for a network, labels for the simulation).
@@ -27,6 +28,7 @@ class EncoderFeatureSource : public FeatureSource {
   FeatureMap features_for(const ImageRecord& record) override;
   void features_into(const ImageRecord& record, FeatureMap& out) override;
   std::string model_id() const override { return encoder_->model_id(); }
+  std::string description() const override { return encoder_->description(); }
 
  private:
   std::unique_ptr<DenseImageEncoder> encoder_;

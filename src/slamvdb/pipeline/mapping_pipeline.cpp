@@ -14,6 +14,11 @@ namespace {
 using Clock = std::chrono::steady_clock;
 }  // namespace
 
+MapInfo map_info_for(const Sequence& seq, const FeatureSource* features, const PipelineOptions& options) {
+  return map_info_for(seq.root.string(), features ? features->model_id() : "", features ? features->description() : "",
+                      options.fusion);
+}
+
 MapperOptions mapper_options(const Sequence& seq, const PipelineOptions& options) {
   MapperOptions m;
   m.map = options.map;
@@ -29,10 +34,8 @@ MapperOptions mapper_options(const Sequence& seq, const PipelineOptions& options
 
 SemanticMap build_map(const Sequence& seq, FeatureSource* features, const PipelineOptions& options,
                       PipelineReport& report, const ProgressFn& progress) {
-  MapInfo info;
-  info.model_id = features ? features->model_id() : "";
-  info.source = seq.root.string();
-  return continue_map(SemanticMap(options.map, info), seq, features, options, report, progress);
+  return continue_map(SemanticMap(options.map, map_info_for(seq, features, options)), seq, features, options, report,
+                      progress);
 }
 
 SemanticMap continue_map(SemanticMap start, const Sequence& seq, FeatureSource* features,

@@ -28,6 +28,10 @@ struct PipelineOptions {
   double unload_radius = 0;      // MapperOptions::unload_radius
 };
 
+// What a map of `sequence` built with `features` (may be null) and `options` records about itself
+// (map_info_for in fusion/projective_fusion.hpp): build_map, slam and the map command use it.
+MapInfo map_info_for(const Sequence& sequence, const FeatureSource* features, const PipelineOptions& options);
+
 // The Mapper's options for replaying `sequence` (its camera and calibration) with `options`.
 MapperOptions mapper_options(const Sequence& sequence, const PipelineOptions& options);
 

@@ -132,7 +132,8 @@ namespace {
 // embeddings with the same direction and the same best class for (nearly) every voxel.
 TEST_F(MappingPipelineTest, Fp16StorageKeepsTheFp32Answer) {
   const Sequence seq = read_sequence(dir_);
-  SimulatedEncoderConfig enc;  // 512-d, as the paper
+  // 512-d, as the paper; the clean encoder by name: storage precision, not the failure modes, is measured
+  const SimulatedEncoderConfig enc = SimulatedEncoderConfig::clean();
   PipelineOptions o;
   o.max_scans = 30;
   o.map.semantic.precision = EmbeddingPrecision::kFloat32;

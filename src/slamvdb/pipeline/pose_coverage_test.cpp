@@ -135,7 +135,7 @@ TEST(SlamPoses, ImagesAcrossARunOfUnreadableScansAreFusedNotDropped) {
   options.pipeline.map.semantic.dim = 16;
   options.pipeline.queue_capacity = 2;
   options.tracking.loop_closure = false;
-  SimulatedEncoderConfig encoder;
+  SimulatedEncoderConfig encoder = SimulatedEncoderConfig::clean();  // mapping mechanics
   encoder.dim = 16;
   EncoderFeatureSource source(std::make_unique<SimulatedDenseEncoder>(encoder), EncoderFeatureSource::Input::kLabels);
   auto run = std::async(std::launch::async, [&] { return map_with_own_poses(seq, &source, options); });

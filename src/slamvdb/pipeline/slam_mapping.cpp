@@ -41,9 +41,7 @@ SlamMappingResult map_with_own_poses(const Sequence& seq, FeatureSource* feature
     return G * tracker.result().loop_closer->correction_at(stamp) * G_inv;
   };
 
-  MapInfo info;
-  info.model_id = features ? features->model_id() : "";
-  info.source = seq.root.string();
+  const MapInfo info = map_info_for(seq, features, options.pipeline);
   PipelineOptions pipeline = options.pipeline;
   pipeline.realtime = false;
   Mapper mapper(mapper_options(seq, pipeline), SemanticMap(options.pipeline.map, info), features, pipeline.store);

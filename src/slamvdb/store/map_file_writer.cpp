@@ -144,7 +144,9 @@ MapFileSummary MapFileWriter::finish(const MapInfo& info, uint64_t memory_bytes)
     else db_->exec("DELETE FROM meta WHERE key = 'memory_bytes'");
     Statement sums(*db_,
                    "SELECT (SELECT coalesce(sum(length(log_odds)), 0) FROM occupancy), "
-                   "(SELECT coalesce(sum(length(keys) + length(counts) + length(embeddings)), 0) FROM semantics)");
+                   // the statistics too, as save_map counts them (the writer writes format 3 only)
+                   "(SELECT coalesce(sum(length(keys) + length(counts) + length(embeddings) + "
+                   "coalesce(length(stats), 0)), 0) FROM semantics)");
     sums.step();
     meta["occupancy_payload_bytes"] = std::to_string(sums.int64(0));
     meta["semantic_payload_bytes"] = std::to_string(sums.int64(1));

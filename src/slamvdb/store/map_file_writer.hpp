@@ -1,5 +1,5 @@
 #pragma once
-// A map file that grows while mapping goes on (format version 2, map_store.hpp). Each finished
+// A map file that grows while mapping goes on (format version 3, map_store.hpp). Each finished
 // submap is committed in its own SQLite transaction (rollback journal, full sync), without
 // rewriting what the file already holds, so a crash or kill -9 at any moment leaves a file that
 // loads and holds every submap committed before it: SQLite rolls an interrupted transaction back

@@ -1,6 +1,7 @@
 // The meta table: parameters and info as text, numbers in their shortest exact form.
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <charconv>
 #include <cmath>
 #include <iterator>
@@ -89,12 +90,15 @@ Meta map_meta(const MapParams& params, const MapInfo& info) {
   Meta meta;
   for_each_number(params, [&](const char* key, const auto& v) { meta[key] = fmt::format("{}", v); });
   meta["semantic_precision"] = std::string(to_string(params.semantic.precision));
+  if (params.semantic.single_view) meta.emplace("semantic_single_view", std::string(1, '1'));
   meta["format_version"] = std::to_string(kMapFormatVersion);
   meta["model_id"] = info.model_id;
   meta["ontology"] = info.ontology;
   meta["source"] = info.source;
   if (!info.config.empty()) meta["config"] = info.config;
   if (info.colour_basis) meta["colour_basis"] = format_colour_basis(*info.colour_basis);
+  meta["fusion"] = info.fusion;
+  if (!info.features.empty()) meta["features"] = info.features;
   return meta;
 }
 
@@ -112,6 +116,11 @@ MapParams parse_params(const Meta& meta) {
     v = parse_number<std::decay_t<decltype(v)>>(meta, key);
   });
   params.semantic.precision = precision_from_string(meta_value(meta, "semantic_precision"));
+  if (const auto single = meta.find("semantic_single_view"); single != meta.end()) {  // absent before format 3
+    if (single->second != "0" && single->second != "1")
+      throw Error(fmt::format("meta entry 'semantic_single_view' = '{}' is neither 0 nor 1", single->second));
+    params.semantic.single_view = single->second == "1";
+  }
   // Sanity beyond the parameters' own rules: values no map of ours can have.
   const double vs = params.occupancy.voxel_size;
   if (!(vs >= 1e-3 && vs <= 1e3)) throw Error(fmt::format("voxel size {} m is outside 0.001..1000", vs));
@@ -126,10 +135,19 @@ MapParams parse_params(const Meta& meta) {
 
 MapInfo parse_info(const Meta& meta, int dim) {
   const auto config = meta.find("config");  // maps before the effective configuration was recorded lack it
-  MapInfo info{meta_value(meta, "model_id"), meta_value(meta, "ontology"), meta_value(meta, "source"),
-               config == meta.end() ? std::string() : config->second, std::nullopt};
+  MapInfo info;
+  info.model_id = meta_value(meta, "model_id");
+  info.ontology = meta_value(meta, "ontology");
+  info.source = meta_value(meta, "source");
+  if (config != meta.end()) info.config = config->second;
   if (const auto basis = meta.find("colour_basis"); basis != meta.end())  // absent before bases were saved
     info.colour_basis = parse_colour_basis(basis->second, dim);
+  if (const auto fusion = meta.find("fusion"); fusion != meta.end()) {  // absent before format 3: the paper's rule
+    if (std::find(kFusionRuleNames.begin(), kFusionRuleNames.end(), fusion->second) == kFusionRuleNames.end())
+      throw Error(fmt::format("meta entry 'fusion' = '{}' is not paper, quality or single-view", fusion->second));
+    info.fusion = fusion->second;
+  }
+  if (const auto features = meta.find("features"); features != meta.end()) info.features = features->second;
   return info;
 }
 

@@ -130,7 +130,7 @@ CREATE TABLE submaps(id INTEGER PRIMARY KEY NOT NULL, pose BLOB NOT NULL, time_b
 CREATE TABLE occupancy(submap INTEGER NOT NULL, bx INTEGER NOT NULL, by INTEGER NOT NULL, bz INTEGER NOT NULL,
   log_odds BLOB NOT NULL, crc INTEGER NOT NULL);
 CREATE TABLE semantics(submap INTEGER NOT NULL, chunk INTEGER NOT NULL, keys BLOB NOT NULL, counts BLOB NOT NULL,
-  embeddings BLOB NOT NULL, crc INTEGER NOT NULL);
+  embeddings BLOB NOT NULL, crc INTEGER NOT NULL, stats BLOB NOT NULL, stats_crc INTEGER NOT NULL);
 )sql";
 
 const char* const kIndexes = R"sql(
@@ -222,21 +222,26 @@ PayloadBytes write_submap_voxels(Database& db, const Submap& submap, EmbeddingPr
   std::sort(entries.begin(), entries.end(), [&](auto a, auto b) { return layer.key_of(a) < layer.key_of(b); });
   const auto dim = static_cast<std::size_t>(layer.dim());
   const std::size_t value_bytes = bytes_per_value(precision);
-  Statement sem(db, "INSERT INTO semantics(submap, chunk, keys, counts, embeddings, crc) VALUES(?, ?, ?, ?, ?, ?)");
+  Statement sem(db,
+                "INSERT INTO semantics(submap, chunk, keys, counts, embeddings, crc, stats, stats_crc) "
+                "VALUES(?, ?, ?, ?, ?, ?, ?, ?)");
   std::vector<int32_t> keys;
   std::vector<uint32_t> counts;
+  std::vector<VoxelStatistics> stats;
   std::vector<std::byte> embeddings;
   std::vector<float> row(dim);
   for (std::size_t begin = 0, chunk = 0; begin < entries.size(); begin += kSemanticChunkEntries, ++chunk) {
     const std::size_t n = std::min(kSemanticChunkEntries, entries.size() - begin);
     keys.resize(3 * n);
     counts.resize(n);
+    stats.resize(n);
     embeddings.resize(n * dim * value_bytes);
     for (std::size_t j = 0; j < n; ++j) {
       const SemanticLayer::Handle h = entries[begin + j];
       const VoxelKey& k = layer.key_of(h);
       keys[3 * j] = k.x(), keys[3 * j + 1] = k.y(), keys[3 * j + 2] = k.z();
       counts[j] = layer.count_of(h);
+      stats[j] = layer.statistics_of(h);
       std::byte* dst = embeddings.data() + j * dim * value_bytes;
       if (layer.precision() == precision) {
         std::memcpy(dst, layer.embedding_of(h).data, dim * value_bytes);
@@ -247,11 +252,13 @@ PayloadBytes write_submap_voxels(Database& db, const Submap& submap, EmbeddingPr
       }
     }
     const auto key_bytes = bytes_of(keys), count_bytes = bytes_of(counts), embedding_bytes = bytes_of(embeddings);
-    payload.semantics += key_bytes.size() + count_bytes.size() + embedding_bytes.size();
+    const auto stats_bytes = bytes_of(stats);
+    payload.semantics += key_bytes.size() + count_bytes.size() + embedding_bytes.size() + stats_bytes.size();
     const int64_t crc =
         Crc().add(id).add(static_cast<int64_t>(chunk)).add(key_bytes).add(count_bytes).add(embedding_bytes).value();
+    const int64_t stats_crc = Crc().add(id).add(static_cast<int64_t>(chunk)).add(stats_bytes).value();
     sem.bind(1, id).bind(2, static_cast<int64_t>(chunk)).bind(3, key_bytes).bind(4, count_bytes).bind(5, embedding_bytes);
-    sem.bind(6, crc).insert();
+    sem.bind(6, crc).bind(7, stats_bytes).bind(8, stats_crc).insert();
   }
   return payload;
 }
@@ -303,12 +310,15 @@ SemanticLayer read_submap_semantics(Database& db, int version, const SubmapSumma
   const auto dim = static_cast<std::size_t>(params.semantic.dim);
   const EmbeddingPrecision precision = params.semantic.precision;
   const std::size_t embedding_bytes = dim * bytes_per_value(precision);
-  Statement sem(db, version >= 2 ? "SELECT keys, counts, embeddings, crc, chunk FROM semantics WHERE submap = ? ORDER BY chunk"
-                                 : "SELECT keys, counts, embeddings, crc FROM semantics WHERE submap = ? ORDER BY rowid");
+  Statement sem(db, version >= 3   ? "SELECT keys, counts, embeddings, crc, chunk, stats, stats_crc FROM semantics "
+                                     "WHERE submap = ? ORDER BY chunk"
+                    : version >= 2 ? "SELECT keys, counts, embeddings, crc, chunk FROM semantics WHERE submap = ? ORDER BY chunk"
+                                   : "SELECT keys, counts, embeddings, crc FROM semantics WHERE submap = ? ORDER BY rowid");
   sem.bind(1, id);
   std::vector<VoxelKey> keys;
   std::vector<int32_t> raw_keys;
   std::vector<uint32_t> counts;
+  std::vector<VoxelStatistics> stats;  // stays empty before version 3: statistics unknown
   for (int64_t chunk = 0; sem.step(); ++chunk) {
     const auto key_bytes = sem.blob(0), count_bytes = sem.blob(1), embedding_blob = sem.blob(2);
     Crc crc;
@@ -335,8 +345,25 @@ SemanticLayer read_submap_semantics(Database& db, int version, const SubmapSumma
     }
     if (!embeddings_finite(embedding_blob.data(), n * dim, precision))
       throw Error(fmt::format("semantic chunk {} of submap {} holds non-finite embeddings", chunk, id));
+    if (version >= 3) {
+      const auto stats_bytes = sem.blob(5);
+      if (Crc().add(id).add(chunk).add(stats_bytes).value() != sem.int64(6))
+        throw Error(fmt::format("CRC mismatch in the statistics of semantic chunk {} of submap {}: the file is corrupt",
+                                chunk, id));
+      if (stats_bytes.size() != n * sizeof(VoxelStatistics))
+        throw Error(fmt::format("semantic chunk {} of submap {} has statistics for {} bytes, expected {}", chunk, id,
+                                stats_bytes.size(), n * sizeof(VoxelStatistics)));
+      stats.resize(n);
+      std::memcpy(stats.data(), stats_bytes.data(), stats_bytes.size());
+      // Weights are positive and finite; a spread is unknown (NaN: carried over from an older map)
+      // or finite and not negative.
+      for (const VoxelStatistics& st : stats)
+        if (!(st.weight > 0.f) || !std::isfinite(st.weight) || (st.known() && !(st.spread >= 0.f && std::isfinite(st.spread))))
+          throw Error(fmt::format("semantic chunk {} of submap {} holds impossible statistics (weight {}, spread {})",
+                                  chunk, id, st.weight, st.spread));
+    }
     try {
-      layer.insert_raw(keys, counts, embedding_blob.data());
+      layer.insert_raw(keys, counts, embedding_blob.data(), stats);
     } catch (const Error& e) {
       throw Error(fmt::format("semantic chunk {} of submap {}: {}", chunk, id, e.what()));
     }

@@ -4,15 +4,19 @@
 // row checked by CRC32 on load, every value checked for meaning (finite, rigid poses, keys inside
 // the representable extent, no duplicates, rows of existing submaps). Saving is atomic.
 //
-// Schema, format version 2 (PRAGMA application_id = kMapApplicationId, user_version = version):
+// Schema, format version 3 (PRAGMA application_id = kMapApplicationId, user_version = version):
 //   meta(key TEXT PRIMARY KEY, value TEXT, crc)                 parameters, info, totals
 //   submaps(id PRIMARY KEY, pose BLOB 16 doubles column-major, time_begin, time_end (NULL when
 //           empty), path_length, blocks, known_voxels, occupied_voxels, semantic_voxels, crc)
 //   occupancy(submap, bx, by, bz, log_odds BLOB, crc)        one row per 8^3 block: 512 floats, zlib
 //   semantics(submap, chunk, keys BLOB n x 3 int32, counts BLOB n uint32,
-//             embeddings BLOB n x dim fp16|fp32, crc)        up to kSemanticChunkEntries per row
+//             embeddings BLOB n x dim fp16|fp32, crc,     up to kSemanticChunkEntries per row
+//             stats BLOB n x (weight, spread) float32, stats_crc)   the observation statistics
 //   indexes on occupancy(submap) and semantics(submap, chunk): submaps are read one by one.
-// Version 1 (one submap, no time range, no chunk column, no indexes) still loads.
+//   meta also records the fusion rule ("fusion"), the feature source ("features") and, for the
+//   single-view baseline, "semantic_single_view".
+// Version 2 (no statistics: they load as unknown, "confidence unknown", with weight = count) and
+// version 1 (one submap, no time range, no chunk column, no indexes) still load.
 // All numbers in blobs are little-endian; a crc covers its row's integer columns and blobs.
 #include <cstdint>
 #include <filesystem>
@@ -23,7 +27,7 @@
 
 namespace slamvdb {
 
-inline constexpr int kMapFormatVersion = 2;
+inline constexpr int kMapFormatVersion = 3;
 inline constexpr int32_t kMapApplicationId = 0x53564442;  // "SVDB"
 inline constexpr std::size_t kSemanticChunkEntries = 4096;
 
@@ -47,7 +51,7 @@ struct MapFileSummary {
   uint64_t file_bytes = 0;
   uint64_t memory_bytes = 0;              // SemanticMap::memory_bytes() of the saved map
   uint64_t occupancy_payload_bytes = 0;   // compressed log-odds blobs
-  uint64_t semantic_payload_bytes = 0;    // keys + counts + embeddings blobs
+  uint64_t semantic_payload_bytes = 0;    // keys + counts + embeddings + statistics blobs
 };
 
 // Writes the map through the one output writer (core/output_file.hpp): to a unique temp file

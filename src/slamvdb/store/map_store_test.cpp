@@ -50,7 +50,7 @@ TEST_F(MapStoreTest, SummaryReadsMetadataAndCounts) {
   EXPECT_EQ(s.semantic_voxels, map.num_semantic_voxels());
   EXPECT_EQ(s.memory_bytes, map.memory_bytes());
   EXPECT_EQ(s.file_bytes, fs::file_size(path));
-  EXPECT_EQ(s.semantic_payload_bytes, map.num_semantic_voxels() * (12 + 4 + 32 * 2));
+  EXPECT_EQ(s.semantic_payload_bytes, map.num_semantic_voxels() * (12 + 4 + 32 * 2 + 8));  // + statistics (format 3)
   ASSERT_EQ(s.submaps.size(), 2u);
   const SubmapSummary& first = s.submaps[0];  // in id order
   EXPECT_EQ(first.info.id, -7);
@@ -135,9 +135,9 @@ TEST_F(MapStoreTest, BadFilesGiveErrorsWithPathAndReason) {
 
   const fs::path newer = dir_ / "newer.svdb";
   write_bytes(newer, bytes);
-  set_pragma(newer, "user_version = 3");
+  set_pragma(newer, "user_version = 4");
   msg = load_error(newer);
-  EXPECT_NE(msg.find("map format version 3 is newer than this slamvdb supports (2); upgrade slamvdb"),
+  EXPECT_NE(msg.find("map format version 4 is newer than this slamvdb supports (3); upgrade slamvdb"),
             std::string::npos)
       << msg;
   EXPECT_NE(msg.find(newer.string()), std::string::npos) << msg;

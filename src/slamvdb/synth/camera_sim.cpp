@@ -52,6 +52,21 @@ Eigen::Vector3f surface_colour(const SceneHit& hit, const Vec3d& point) {
 
 }  // namespace
 
+double world_appearance(const Vec3d& p_world, double scale, uint64_t seed) {
+  // Value noise has mean 0.5 and (per octave) a standard deviation of about 0.155 (measured over
+  // 10^6 points); three octaves of halving amplitude are summed and scaled to unit variance.
+  const Vec3d offset(static_cast<double>(seed % 1000003) * 0.618, static_cast<double>(seed % 999983) * 0.382, 17.0);
+  double sum = 0, amplitude = 1, norm = 0;
+  Vec3d p = p_world / scale + offset;
+  for (int octave = 0; octave < 3; ++octave) {
+    sum += amplitude * (value_noise(p) - 0.5);
+    norm += amplitude * amplitude;
+    amplitude *= 0.5;
+    p = 2.03 * p + Vec3d(5.1, 9.7, 3.3);
+  }
+  return sum / (0.155 * std::sqrt(norm));
+}
+
 CameraModel rellis_camera(int width, int height) {
   CameraModel full;
   full.width = 1920;
@@ -106,8 +121,10 @@ CameraSimulator::CameraSimulator(const CameraModel& camera) : camera_(camera) {
     }
 }
 
-RenderedFrame CameraSimulator::render(const Scene& scene, const Pose& T_world_camera, double max_range) const {
-  RenderedFrame frame{cv::Mat(camera_.height, camera_.width, CV_8UC3), cv::Mat(camera_.height, camera_.width, CV_8UC1)};
+RenderedFrame CameraSimulator::render(const Scene& scene, const Pose& T_world_camera, double max_range,
+                                      const RenderOptions& options) const {
+  RenderedFrame frame{cv::Mat(camera_.height, camera_.width, CV_8UC3), cv::Mat(camera_.height, camera_.width, CV_8UC1),
+                      options.view_geometry ? cv::Mat(camera_.height, camera_.width, CV_16UC3) : cv::Mat()};
   const Vec3d origin = T_world_camera.translation();
   const Eigen::Matrix3d R = T_world_camera.linear();
   tbb::parallel_for(tbb::blocked_range<int>(0, camera_.height), [&](const tbb::blocked_range<int>& rows) {
@@ -121,6 +138,18 @@ RenderedFrame CameraSimulator::render(const Scene& scene, const Pose& T_world_ca
         label[u] = static_cast<uint8_t>(hit ? hit->label : kSkyClass);
         for (int k = 0; k < 3; ++k)
           bgr[u][2 - k] = static_cast<uint8_t>(std::clamp(std::lround(255.0f * c[k]), 0L, 255L));
+        if (options.view_geometry) {
+          auto& g = frame.view.ptr<cv::Vec<uint16_t, 3>>(v)[u];
+          if (!hit) {
+            g = {0, 0, 32768};
+            continue;
+          }
+          const Vec3d p = origin + hit->range * dir;
+          const double a = world_appearance(p, options.appearance_scale_m, options.appearance_seed);
+          g[0] = static_cast<uint16_t>(std::clamp(std::lround(hit->range / kViewRangeUnit), 1L, 65535L));
+          g[1] = static_cast<uint16_t>(std::clamp(std::lround(65535.0 * std::abs(hit->normal.dot(dir))), 0L, 65535L));
+          g[2] = static_cast<uint16_t>(std::clamp(std::lround(32768.0 + kViewAppearanceScale * a), 0L, 65535L));
+        }
       }
     }
   });

@@ -5,6 +5,7 @@
 #include <opencv2/core.hpp>
 #include <vector>
 
+#include "slamvdb/core/simulated_view.hpp"
 #include "slamvdb/fusion/camera_model.hpp"
 #include "slamvdb/synth/scene.hpp"
 
@@ -23,9 +24,21 @@ Pose rellis_T_lidar_camera();
 // distortion cannot be inverted there.
 Eigen::Vector2d undistort_normalized(const CameraModel& camera, const Eigen::Vector2d& distorted);
 
+// A smooth, roughly standard-normal field over the world (three octaves of value noise with a
+// coarsest wavelength of `scale` metres), keyed by `seed`: where the simulated encoder errs
+// persistently. Deterministic.
+double world_appearance(const Vec3d& p_world, double scale, uint64_t seed);
+
 struct RenderedFrame {
   cv::Mat bgr;     // CV_8UC3, OpenCV channel order
   cv::Mat labels;  // CV_8UC1, RELLIS-3D class ids, kSkyClass where a ray hits nothing
+  cv::Mat view;    // CV_16UC3, the view geometry (core/simulated_view.hpp; empty unless asked for)
+};
+
+struct RenderOptions {
+  bool view_geometry = false;      // also render RenderedFrame::view
+  double appearance_scale_m = 4.0; // wavelength of the world appearance field
+  uint64_t appearance_seed = 1;
 };
 
 class CameraSimulator {
@@ -35,7 +48,8 @@ class CameraSimulator {
 
   const CameraModel& camera() const { return camera_; }
   const Vec3d& ray(int u, int v) const { return rays_[static_cast<std::size_t>(v) * camera_.width + u]; }
-  RenderedFrame render(const Scene& scene, const Pose& T_world_camera, double max_range) const;
+  RenderedFrame render(const Scene& scene, const Pose& T_world_camera, double max_range,
+                       const RenderOptions& options = {}) const;
 
  private:
   CameraModel camera_;

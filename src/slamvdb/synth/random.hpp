@@ -12,7 +12,7 @@ namespace slamvdb::synth {
 
 // Independent streams of one seed, e.g. (seed, kLidarNoise, scan index); each consumer of
 // randomness gets its own stream so changing one part never shifts another's numbers.
-enum class Stream : uint64_t { kTerrain = 1, kLayout, kPath, kLidarNoise, kCameraJitter };
+enum class Stream : uint64_t { kTerrain = 1, kLayout, kPath, kLidarNoise, kCameraJitter, kRigError };
 
 class Rng {
  public:

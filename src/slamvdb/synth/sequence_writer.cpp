@@ -7,10 +7,12 @@
 #include <mutex>
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
 
 #include "slamvdb/core/error.hpp"
 #include "slamvdb/core/ontology.hpp"
 #include "slamvdb/core/output_file.hpp"
+#include "slamvdb/io/rellis_reader.hpp"
 #include "slamvdb/io/sequence_reader.hpp"
 #include "slamvdb/synth/camera_sim.hpp"
 
@@ -45,13 +47,13 @@ void prepare_output(const fs::path& out, bool overwrite) {
   if (ec) throw Error(fmt::format("cannot create {}: {}", out.string(), ec.message()));
   write_output_file(out / kIncompleteMarker,
                         "slamvdb synth is writing this sequence; if this file remains, it failed or was killed\n");
-  for (const char* dir : {kLidarDir, kLidarLabelDir, kImageDir, kImageLabelDir}) {
+  for (const char* dir : {kLidarDir, kLidarLabelDir, kImageDir, kImageLabelDir, kRellisSimViewDir.data()}) {
     fs::remove_all(out / dir, ec);
     if (ec) throw Error(fmt::format("cannot remove the earlier {}: {}", (out / dir).string(), ec.message()));
   }
   for (const char* file : kTopFiles) fs::remove(out / file, ec);
   remove_stale_temp_files(out);
-  for (const char* dir : {kLidarDir, kLidarLabelDir, kImageDir, kImageLabelDir}) {
+  for (const char* dir : {kLidarDir, kLidarLabelDir, kImageDir, kImageLabelDir, kRellisSimViewDir.data()}) {
     fs::create_directories(out / dir, ec);
     if (ec) throw Error(fmt::format("cannot create {}: {}", (out / dir).string(), ec.message()));
   }
@@ -111,6 +113,10 @@ nlohmann::json config_json(const SynthConfig& c) {
           {"jpeg_quality", c.jpeg_quality},
           {"keep_no_return", c.keep_no_return},
           {"base_stamp", c.base_stamp},
+          {"rig_translation_error_m", c.rig_translation_error_m},
+          {"rig_rotation_error_deg", c.rig_rotation_error_deg},
+          {"rig_time_offset_s", c.rig_time_offset_s},
+          {"view_geometry", c.view_geometry},
           {"lidar",
            {{"beams", c.lidar.beams},
             {"columns", c.lidar.columns},
@@ -186,11 +192,20 @@ SynthSummary write_synthetic_sequence(const SynthConfig& config, const fs::path&
     } else {
       const std::size_t frame = task - scans;
       const int64_t ms = world.camera_stamps_ms[frame];
-      const RenderedFrame rendered =
-          camera.render(*world.scene, world.T_world_camera(ms / 1000.0), config.camera_max_range_m);
+      RenderOptions render_options;
+      render_options.view_geometry = config.view_geometry;
+      render_options.appearance_seed = config.seed;
+      const RenderedFrame rendered = camera.render(*world.scene, world.T_world_camera_true(ms / 1000.0),
+                                                   config.camera_max_range_m, render_options);
       const std::string stem = camera_frame_stem(frame, ms);
       write_image(out / kImageDir / (stem + ".jpg"), rendered.bgr, jpeg_params);
       write_image(out / kImageLabelDir / (stem + ".png"), rendered.labels, {});
+      if (config.view_geometry) {  // at half the image size: the encoder reads it at the feature size
+        cv::Mat half;
+        cv::resize(rendered.view, half, cv::Size((rendered.view.cols + 1) / 2, (rendered.view.rows + 1) / 2), 0, 0,
+                   cv::INTER_NEAREST);
+        write_image(out / kRellisSimViewDir / (stem + ".png"), half, {cv::IMWRITE_PNG_COMPRESSION, 6});
+      }
     }
     const std::lock_guard lock(mutex);
     for (std::size_t c = 0; c < per_class.size(); ++c) summary.points_per_class[c] += per_class[c];
@@ -227,16 +242,37 @@ SynthSummary write_synthetic_sequence(const SynthConfig& config, const fs::path&
         "camera stamps are whole milliseconds, offset and jittered so none equals a scan stamp",
         "poses are ground truth T_world_lidar; world z is up",
         "all objects are static (vehicles and people do not move)",
-        "RGB colours are a natural-looking palette, not the RELLIS-3D label colours"}}};
+        "RGB colours are a natural-looking palette, not the RELLIS-3D label colours",
+        "SIMULATED rig errors: images are rendered from the camera at the true extrinsic (transforms.yaml moved by "
+        "rig_translation_error_m and rig_rotation_error_deg, in directions drawn from the seed) at the true capture "
+        "time (the file name's stamp plus rig_time_offset_s); the files carry the nominal values",
+        "pylon_camera_node_sim_view/ (not in RELLIS-3D): SIMULATED per-pixel view geometry for the simulated "
+        "encoder, 16-bit 3 channels: range in cm, cosine of the incidence angle x 65535, world-fixed appearance "
+        "value as 32768 + 8192 x value"}},
+      {"rig",
+       {{"T_lidar_camera_true", nlohmann::json::array()},
+        {"translation_error_m", config.rig_translation_error_m},
+        {"rotation_error_deg", config.rig_rotation_error_deg},
+        {"time_offset_s", config.rig_time_offset_s}}}};
+  {
+    const Eigen::Matrix4d T = world.T_lidar_camera_true.matrix();
+    for (int r = 0; r < 3; ++r)
+      for (int c = 0; c < 4; ++c) meta["rig"]["T_lidar_camera_true"].push_back(T(r, c));
+  }
   write_text(out / "synth.json", meta.dump(2) + "\n");
+  if (!config.view_geometry) {
+    std::error_code view_ec;
+    fs::remove(out / kRellisSimViewDir, view_ec);  // created empty by prepare_output
+  }
   sync_file_system(out);  // everything durable before the sequence is declared complete
   std::error_code ec;
   if (!fs::remove(out / kIncompleteMarker, ec) || ec)
     throw Error(fmt::format("cannot remove {}: {}", (out / kIncompleteMarker).string(), ec.message()));
   sync_directory(out);
 
-  for (const char* dir : {kLidarDir, kLidarLabelDir, kImageDir, kImageLabelDir})
-    for (const auto& entry : fs::directory_iterator(out / dir)) summary.bytes += entry.file_size();
+  for (const char* dir : {kLidarDir, kLidarLabelDir, kImageDir, kImageLabelDir, kRellisSimViewDir.data()})
+    if (fs::is_directory(out / dir, ec))
+      for (const auto& entry : fs::directory_iterator(out / dir)) summary.bytes += entry.file_size();
   for (const char* file : kTopFiles) summary.bytes += fs::file_size(out / file);
   return summary;
 }

@@ -4,6 +4,10 @@
 //   os1_cloud_node_semantickitti_label_id/000000.label   N x uint32, low 16 bits = class id
 //   pylon_camera_node/frame000000-SEC_MSEC.jpg           RGB image, the name carries its stamp
 //   pylon_camera_node_label_id/frame000000-SEC_MSEC.png  uint8 class ids, same stem
+//   pylon_camera_node_sim_view/frame000000-SEC_MSEC.png  SIMULATED view geometry at half the image size
+//                                                        (16-bit, core/simulated_view.hpp; not in RELLIS-3D;
+//                                                        unless config.view_geometry is off; the folder
+//                                                        name is io's kRellisSimViewDir)
 //   poses.txt        per scan: KITTI 3x4 row-major T_world_lidar
 //   times.txt        per scan: stamp in seconds (our addition; RELLIS-3D has none)
 //   camera_info.txt  "fx fy cx cy" at the written image size, then "k1 k2 p1 p2 k3"

@@ -35,9 +35,37 @@ void SynthConfig::validate() const {
           fmt::format("image size {}x{} must be within 16..8192 pixels per side", image_width, image_height));
   require(jpeg_quality >= 1 && jpeg_quality <= 100, fmt::format("JPEG quality {} must be in 1..100", jpeg_quality));
   require(std::isfinite(base_stamp) && base_stamp >= 0.0, fmt::format("base stamp {} must be >= 0", base_stamp));
+  require(std::isfinite(rig_translation_error_m) && rig_translation_error_m >= 0.0 && rig_translation_error_m <= 1.0,
+          fmt::format("rig translation error {} m must be in [0, 1]", rig_translation_error_m));
+  require(std::isfinite(rig_rotation_error_deg) && rig_rotation_error_deg >= 0.0 && rig_rotation_error_deg <= 10.0,
+          fmt::format("rig rotation error {} deg must be in [0, 10]", rig_rotation_error_deg));
+  require(std::isfinite(rig_time_offset_s) && std::abs(rig_time_offset_s) <= 0.1,
+          fmt::format("rig time offset {} s must be within +-0.1 s", rig_time_offset_s));
   require(repeat_spacing_m >= 10.0, fmt::format("repeat spacing {} m must be >= 10", repeat_spacing_m));
   lidar.validate();
 }
+
+namespace {
+
+// The nominal extrinsic moved by the configured errors: a translation of the given length and a
+// rotation by the given angle, about and along directions drawn from the seed.
+Pose true_T_lidar_camera(const Pose& nominal, const SynthConfig& config) {
+  Rng rng(config.seed, Stream::kRigError, 0);
+  const auto direction = [&] {
+    Vec3d d;
+    do d = Vec3d(rng.gaussian(), rng.gaussian(), rng.gaussian());
+    while (d.norm() < 1e-6);
+    return Vec3d(d.normalized());
+  };
+  const Vec3d t = direction() * config.rig_translation_error_m;
+  const Vec3d axis = direction();
+  Pose error = Pose::Identity();
+  error.linear() = Eigen::AngleAxisd(config.rig_rotation_error_deg * M_PI / 180.0, axis).toRotationMatrix();
+  error.translation() = t;
+  return nominal * error;  // the error in the camera's own frame
+}
+
+}  // namespace
 
 SynthWorld build_synthetic_world(const SynthConfig& config) {
   config.validate();
@@ -53,6 +81,7 @@ SynthWorld build_synthetic_world(const SynthConfig& config) {
                    std::move(trajectory),
                    rellis_camera(config.image_width, config.image_height),
                    rellis_T_lidar_camera(),
+                   true_T_lidar_camera(rellis_T_lidar_camera(), config),
                    {},
                    {},
                    {},

@@ -36,6 +36,18 @@ struct SynthConfig {
   int jpeg_quality = 90;
   bool keep_no_return = false;  // write no-return rays as all-zero points (label 0) like the real sensor
   double base_stamp = 1700000000.0;
+  // The rig's own SIMULATED errors, on by default: a real camera-LiDAR calibration is off by a few
+  // centimetres and tenths of a degree, and a camera's time stamp by a few milliseconds. The images
+  // are rendered from the TRUE camera (the written extrinsic moved by these errors, in a direction
+  // drawn from the seed) at the TRUE capture time (the stamp plus the offset), while
+  // transforms.yaml and the file names carry the nominal values, so a map made from the sequence
+  // lives with the errors as with a real rig. synth.json records them. All zero: a perfect rig.
+  double rig_translation_error_m = 0.03;
+  double rig_rotation_error_deg = 0.3;
+  double rig_time_offset_s = 0.005;
+  // Write pylon_camera_node_sim_view/ (camera_sim.hpp): the SIMULATED per-pixel view geometry the
+  // simulated encoder's view-dependent and persistent errors are keyed to.
+  bool view_geometry = true;
   LidarModel lidar;
 
   void validate() const;  // throws Error naming the bad parameter
@@ -46,7 +58,8 @@ struct SynthWorld {
   std::shared_ptr<const Scene> scene;
   SimulatedTrajectory trajectory;
   CameraModel camera;  // at the written image size
-  Pose T_lidar_camera = Pose::Identity();
+  Pose T_lidar_camera = Pose::Identity();       // nominal: what transforms.yaml says
+  Pose T_lidar_camera_true = Pose::Identity();  // what the images are rendered with (rig errors)
   std::vector<double> scan_stamps;        // absolute seconds, LiDAR rate
   std::vector<Pose> scan_poses;           // ground truth T_world_lidar at scan_stamps
   std::vector<int64_t> camera_stamps_ms;  // absolute milliseconds (the file names' resolution)
@@ -55,6 +68,10 @@ struct SynthWorld {
   // Ground truth at any time within the drive (continuous, not interpolated between scans).
   Pose T_world_lidar(double stamp) const { return trajectory.T_world_lidar(stamp - config.base_stamp); }
   Pose T_world_camera(double stamp) const { return T_world_lidar(stamp) * T_lidar_camera; }
+  // Where the camera really was for the image stamped `stamp` (rig errors included).
+  Pose T_world_camera_true(double stamp) const {
+    return T_world_lidar(stamp + config.rig_time_offset_s) * T_lidar_camera_true;
+  }
 };
 
 SynthWorld build_synthetic_world(const SynthConfig& config);

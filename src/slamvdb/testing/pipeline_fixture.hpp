@@ -38,8 +38,11 @@ class MappingPipelineTest : public ::testing::Test {
     o.map.semantic.dim = 64;  // small and fast; the pipeline is dimension-agnostic
     return o;
   }
+  // The clean SIMULATED encoder: these tests measure the mapping mechanics (fusion against fewer
+  // views, occlusion choices) with the ideal text queries, not the realistic failure modes
+  // (eval/honest_accuracy_test.cpp does that).
   static SimulatedEncoderConfig encoder_config() {
-    SimulatedEncoderConfig c;
+    SimulatedEncoderConfig c = SimulatedEncoderConfig::clean();
     c.dim = 64;
     return c;
   }

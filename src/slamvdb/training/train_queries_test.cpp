@@ -41,7 +41,7 @@ class TrainQueriesTest : public ::testing::Test {
   }
 
   static SimulatedEncoderConfig encoder(float text_gap = 0.f) {
-    SimulatedEncoderConfig c;
+    SimulatedEncoderConfig c = SimulatedEncoderConfig::clean();  // the near-perfect one, by name
     c.dim = 64;
     c.width = 96;
     c.height = 60;
