@@ -6,6 +6,7 @@
 #include <cmath>
 #include <limits>
 #include <numbers>
+#include <vector>
 
 #include "slamvdb/core/se3.hpp"
 #include "slamvdb/testing/error_of.hpp"
@@ -54,7 +55,8 @@ TEST(LidarOdometry, DriftBelowOnePercentOnASimulatedDrive) {
 // Short loops of other seeds: before the simulator kept hand-placed objects off the whole loop,
 // seeds 3 and 5 drove through the yard's building and odometry lost track there.
 TEST(LidarOdometry, TracksShortLoopsOfOtherSeeds) {
-  for (const uint64_t seed : {3u, 5u}) {
+  // The sanitizer run registers seed 3 alone (slamvdb/testing/test_scale.hpp): the same code as seed 5.
+  for (const uint64_t seed : slamvdb::testing::test_size<std::vector<uint64_t>>({3u, 5u}, {3u})) {
     SCOPED_TRACE(::testing::Message() << "seed " << seed);
     synth::SynthConfig config;
     config.seed = seed;

@@ -105,14 +105,7 @@ TEST(SlamCommand, CorrectionsWhileMappingRemoveSimulatedDrift) {
     return std::make_pair(load_map(out), r.output);
   };
   const auto [closed, closed_output] = slam("closed.svdb", "");
-  const auto [drifted, drifted_output] = slam("drifted.svdb", "--no-loop-closure");
-  const fs::path truth_path = tmp.path / "truth.svdb";
-  const auto truth_run = run_command(cli + " map " + shell_quote(seq_dir) + " -o " +
-                                     shell_quote(truth_path.string()) + common + " 2>&1", 300);
-  ASSERT_EQ(truth_run.exit_code, 0) << truth_run.output;
-  const SemanticMap truth = load_map(truth_path);
   std::cout << closed_output.substr(closed_output.find("slam of"));
-
   EXPECT_NE(closed_output.find("SIMULATED"), std::string::npos);
   EXPECT_NE(closed.info().source.find("SIMULATED drift"), std::string::npos);
   // The drift is large (0.27 m ATE after alignment, measured), loop closure takes most of it away.
@@ -122,6 +115,16 @@ TEST(SlamCommand, CorrectionsWhileMappingRemoveSimulatedDrift) {
   EXPECT_LT(ate_closed, 0.3 * ate_odometry) << closed_output;
   // Submaps were moved by about that much while mapping went on.
   EXPECT_GT(number_after(closed_output, "largest shift "), 0.3) << closed_output;
+  // The map comparison below maps the drive twice more: an accuracy check for the Release suite.
+  // Under the sanitizers the corrections' code has run above (slamvdb/testing/test_scale.hpp).
+  if (testing::sanitizer_test_scale()) return;
+
+  const auto [drifted, drifted_output] = slam("drifted.svdb", "--no-loop-closure");
+  const fs::path truth_path = tmp.path / "truth.svdb";
+  const auto truth_run = run_command(cli + " map " + shell_quote(seq_dir) + " -o " +
+                                     shell_quote(truth_path.string()) + common + " 2>&1", 300);
+  ASSERT_EQ(truth_run.exit_code, 0) << truth_run.output;
+  const SemanticMap truth = load_map(truth_path);
   // And the map shows it: the drifted map's second pass does not lie on the first.
   const double iou_closed = occupied_iou(closed, truth, 1), iou_drifted = occupied_iou(drifted, truth, 1);
   std::cout << "occupied-voxel IoU within one voxel with the ground-truth map: " << iou_closed << " with loop closure, "
