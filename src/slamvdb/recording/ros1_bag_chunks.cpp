@@ -7,7 +7,7 @@
 #include <cstring>
 
 #include "slamvdb/core/error.hpp"
-#include "slamvdb/recording/chunk_decompress.hpp"
+#include "slamvdb/recording/decompress.hpp"
 #include "slamvdb/recording/ros1_bag_reader.hpp"
 
 namespace slamvdb::recording::ros1 {
@@ -111,8 +111,9 @@ std::string Ros1BagReader::load_chunk(const FileRecord& record, OpenChunk& chunk
   compressed_.resize(available);
   read_at(record.data_offset, compressed_.data(), compressed_.size());
   const std::size_t max_size = unfinished ? chunks_detail::kMaxUnfinishedChunkOutput : size;
-  const Decompressed result = compression == "lz4" ? decompress_lz4_frame(compressed_, max_size, chunk.data)
-                                                   : decompress_bz2(compressed_, max_size, chunk.data);
+  const Decompressed result = compression == "lz4"
+                                  ? decompressor_.lz4_frame_recover(compressed_, max_size, chunk.data)
+                                  : decompress_bz2(compressed_, max_size, chunk.data);
   if (compressed_.capacity() > (std::size_t{64} << 20)) compressed_ = {};  // no big buffer kept for a rare chunk
   if (result.complete) return loss;
   if (!salvage) fail(record.offset, fmt::format("the chunk's {} data are damaged: {}", compression, result.problem));

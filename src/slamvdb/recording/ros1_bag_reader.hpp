@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "slamvdb/core/regular_file.hpp"
+#include "slamvdb/recording/decompress.hpp"
 #include "slamvdb/recording/ros1_bag.hpp"
 #include "slamvdb/recording/ros1_bag_records.hpp"
 
@@ -99,6 +100,7 @@ class Ros1BagReader final : public RecordingReader {
   std::int64_t last_time_ns_ = INT64_MIN;
   bool out_of_order_noted_ = false;
   std::vector<std::uint8_t> compressed_;  // reused for each chunk's compressed bytes
+  Decompressor decompressor_;
 
   bool indexed_ = false;
   // Indexed: the chunks by (start time, file offset), the next to open, the open ones and the
