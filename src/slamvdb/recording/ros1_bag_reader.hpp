@@ -9,8 +9,8 @@
 #include <string>
 #include <vector>
 
-#include "slamvdb/core/regular_file.hpp"
 #include "slamvdb/recording/decompress.hpp"
+#include "slamvdb/recording/positional_file.hpp"
 #include "slamvdb/recording/ros1_bag.hpp"
 #include "slamvdb/recording/ros1_bag_records.hpp"
 
@@ -53,7 +53,7 @@ class Ros1BagReader final : public RecordingReader {
   std::uint64_t size_bytes() const override { return file_.size(); }
   void select(const std::set<std::uint32_t>& channel_ids) override { selected_ = channel_ids; }
   bool next(Message& out) override;
-  std::uint64_t bytes_read() const override { return bytes_read_; }
+  std::uint64_t bytes_read() const override { return file_.bytes_read(); }
   std::vector<std::string> notes() const override;
 
  private:
@@ -69,7 +69,6 @@ class Ros1BagReader final : public RecordingReader {
   [[noreturn]] void fail(std::uint64_t offset, std::string_view what) const;
 
   // ros1_bag_chunks.cpp
-  void read_at(std::uint64_t offset, void* destination, std::size_t bytes);
   std::optional<FileRecord> read_record(std::uint64_t offset, std::string& why);
   RecordFields fields_of(const FileRecord& record) const;
   // Decompresses the chunk record into chunk.data. `salvage`: a chunk cut by the end of the
@@ -87,8 +86,7 @@ class Ros1BagReader final : public RecordingReader {
 
   std::filesystem::path path_;
   Ros1BagOptions options_;
-  RegularFile file_;
-  std::uint64_t bytes_read_ = 0;
+  PositionalFile file_;
   std::vector<Channel> channels_;
   bool channels_reserved_ = false;  // no index: channels found while reading, in reserved room
   std::map<std::uint32_t, std::size_t> channel_of_connection_;
