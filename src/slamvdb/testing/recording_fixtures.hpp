@@ -12,6 +12,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <string>
 #include <vector>
 
@@ -132,6 +133,31 @@ inline ::testing::AssertionResult same_messages(const std::vector<WrittenMessage
   if (expected.size() != read.size())
     return ::testing::AssertionFailure() << expected.size() << " messages written, " << read.size() << " read";
   return ::testing::AssertionSuccess();
+}
+
+// Checks a reader's channels against the manifest (one per topic: its type, `serialization` and
+// the encoding that names it, its message count) and its time range against the first and last
+// log times written.
+inline void expect_channels_of(const recording::RecordingReader& reader, const std::vector<WrittenMessage>& written,
+                               recording::Serialization serialization) {
+  std::map<std::string, std::uint64_t> count;
+  for (const auto& w : written) ++count[w.topic];
+  ASSERT_EQ(reader.channels().size(), count.size());
+  for (const recording::Channel& c : reader.channels()) {
+    SCOPED_TRACE(c.topic);
+    const auto it = std::find_if(written.begin(), written.end(), [&](const auto& w) { return w.topic == c.topic; });
+    ASSERT_NE(it, written.end());
+    EXPECT_EQ(c.type, it->type);  // in ROS 1 form ("sensor_msgs/msg/PointCloud2" in a ROS 2 bag)
+    EXPECT_EQ(c.serialization, serialization);
+    EXPECT_EQ(c.encoding, serialization == recording::Serialization::kCdr ? "cdr" : "ros1");
+    ASSERT_TRUE(c.message_count.has_value());  // from a summary or index, or counted
+    EXPECT_EQ(*c.message_count, count[c.topic]);
+  }
+  const auto [first, last] = std::minmax_element(
+      written.begin(), written.end(), [](const auto& a, const auto& b) { return a.log_time_ns < b.log_time_ns; });
+  ASSERT_TRUE(reader.time_range().has_value());
+  EXPECT_EQ(reader.time_range()->start_ns, first->log_time_ns);
+  EXPECT_EQ(reader.time_range()->end_ns, last->log_time_ns);
 }
 
 // A reader's notes, one per line.
