@@ -7,9 +7,9 @@
 // type, log time, size and CRC-32 of its serialized bytes, for tests to compare what they read.
 import fs from "node:fs";
 import { execFileSync } from "node:child_process";
-import zlib from "node:zlib";
 import { McapWriter } from "@mcap/core";
-import { readSequence, secondsToNs, UsageError } from "./sequence.mjs";
+import { manifestLine, parseArguments, runMain, writeManifest } from "./args.mjs";
+import { readSequence, UsageError } from "./sequence.mjs";
 import { makeSerializers, messageObject, ros2Name, TYPE_OF_KIND } from "./ros_messages.mjs";
 
 const HELP = `usage: node write_mcap.mjs SEQUENCE_DIR OUT.mcap [options]
@@ -30,47 +30,22 @@ const HELP = `usage: node write_mcap.mjs SEQUENCE_DIR OUT.mcap [options]
   --manifest FILE              JSON lines: topic, type, log_time_ns, size, crc32 of every message written
   --help`;
 
-function parseArguments(argv) {
-  const o = { profile: "ros2", compression: "none", summary: true, chunked: true, chunkSize: 1 << 20, order: "time",
-    bigEndian: false, logTimeOffset: 0n, jsonChannel: false, positional: [] };
-  for (let i = 0; i < argv.length; ++i) {
-    const a = argv[i];
-    const value = () => {
-      if (i + 1 >= argv.length) throw new UsageError(`${a} needs a value`);
-      return argv[++i];
-    };
-    const int = (name) => {
-      const v = value();
-      if (!/^\d+$/.test(v)) throw new UsageError(`${name} must be a non-negative integer, not "${v}"`);
-      return Number(v);
-    };
-    const choice = (name, allowed) => {
-      const v = value();
-      if (!allowed.includes(v)) throw new UsageError(`${name} must be one of ${allowed.join(", ")}, not "${v}"`);
-      return v;
-    };
-    if (a === "--help" || a === "-h") { console.log(HELP); process.exit(0); }
-    else if (a === "--profile") o.profile = choice(a, ["ros1", "ros2"]);
-    else if (a === "--compression") o.compression = choice(a, ["none", "lz4", "zstd"]);
-    else if (a === "--no-summary") o.summary = false;
-    else if (a === "--unchunked") o.chunked = false;
-    else if (a === "--chunk-size") o.chunkSize = int(a);
-    else if (a === "--order") o.order = choice(a, ["time", "by-topic"]);
-    else if (a === "--big-endian") o.bigEndian = true;
-    else if (a === "--max-scans") o.maxScans = int(a);
-    else if (a === "--padding") o.padding = int(a);
-    else if (a === "--organised") o.organised = int(a);
-    else if (a === "--point-times") o.pointTimesDir = value();
-    else if (a === "--log-time-offset") {
-      const v = value();
-      if (!/^-?\d+(\.\d*)?$/.test(v)) throw new UsageError(`--log-time-offset must be seconds, not "${v}"`);
-      o.logTimeOffset = secondsToNs(v);
-    } else if (a === "--json-channel") o.jsonChannel = true;
-    else if (a === "--manifest") o.manifest = value();
-    else if (a.startsWith("-")) throw new UsageError(`unknown option ${a}`);
-    else o.positional.push(a);
-  }
-  if (o.positional.length !== 2) throw new UsageError("expected SEQUENCE_DIR and OUT.mcap");
+// write_mcap.mjs's own options (the shared ones are in args.mjs).
+function ownOption(a, o, read) {
+  if (a === "--profile") o.profile = read.choice(a, ["ros1", "ros2"]);
+  else if (a === "--compression") o.compression = read.choice(a, ["none", "lz4", "zstd"]);
+  else if (a === "--no-summary") o.summary = false;
+  else if (a === "--unchunked") o.chunked = false;
+  else if (a === "--chunk-size") o.chunkSize = read.int(a);
+  else if (a === "--order") o.order = read.choice(a, ["time", "by-topic"]);
+  else if (a === "--json-channel") o.jsonChannel = true;
+  else return false;
+  return true;
+}
+
+function parseMcapArguments(argv) {
+  const o = parseArguments(argv, HELP, { profile: "ros2", compression: "none", summary: true, chunked: true,
+    chunkSize: 1 << 20, order: "time", jsonChannel: false }, ownOption, "expected SEQUENCE_DIR and OUT.mcap");
   if (o.bigEndian && o.profile !== "ros2") throw new UsageError("--big-endian needs --profile ros2");
   return o;
 }
@@ -91,7 +66,7 @@ class FileWritable {
 }
 
 async function main() {
-  const o = parseArguments(process.argv.slice(2));
+  const o = parseMcapArguments(process.argv.slice(2));
   const [sequenceDir, outFile] = o.positional;
   const ros2 = o.profile === "ros2";
   const messages = readSequence(sequenceDir, o);
@@ -123,7 +98,7 @@ async function main() {
   const manifest = [];
   const record = async (topic, type, logTime, data, channelId) => {
     await writer.addMessage({ channelId, sequence: manifest.length, logTime, publishTime: logTime, data });
-    manifest.push(JSON.stringify({ topic, type, log_time_ns: logTime.toString(), size: data.length, crc32: zlib.crc32(data) }));
+    manifest.push(manifestLine(topic, type, logTime, data));
   };
   for (const m of messages) {
     const type = TYPE_OF_KIND[m.kind];
@@ -139,11 +114,7 @@ async function main() {
   }
   await writer.end();
   file.close();
-  if (o.manifest) fs.writeFileSync(o.manifest, manifest.join("\n") + "\n");
+  writeManifest(o.manifest, manifest);
 }
 
-main().catch((e) => {
-  console.error(`write_mcap.mjs: ${e.message}`);
-  if (!(e instanceof UsageError) && process.env.DEBUG) console.error(e.stack);
-  process.exit(e instanceof UsageError ? 2 : 1);
-});
+runMain("write_mcap.mjs", main);

@@ -9,9 +9,9 @@
 import fs from "node:fs";
 import path from "node:path";
 import { execFileSync } from "node:child_process";
-import zlib from "node:zlib";
 import { fileURLToPath } from "node:url";
-import { readSequence, secondsToNs, UsageError } from "./sequence.mjs";
+import { manifestLine, parseArguments, runMain, writeManifest } from "./args.mjs";
+import { readSequence, UsageError } from "./sequence.mjs";
 import { makeSerializers, messageObject, ros2Name, TYPE_OF_KIND } from "./ros_messages.mjs";
 
 const HELP = `usage: node write_rosbag2.mjs SEQUENCE_DIR OUT_DIR [options]
@@ -29,45 +29,20 @@ const HELP = `usage: node write_rosbag2.mjs SEQUENCE_DIR OUT_DIR [options]
 
 const DISTROS = { humble: { schema: 3, version: 5 }, iron: { schema: 4, version: 8 }, jazzy: { schema: 4, version: 9 } };
 
-function parseArguments(argv) {
-  const o = { split: 1, compression: "none", distro: "jazzy", metadata: true, bigEndian: false, logTimeOffset: 0n,
-    python: "python3", positional: [] };
-  for (let i = 0; i < argv.length; ++i) {
-    const a = argv[i];
-    const value = () => {
-      if (i + 1 >= argv.length) throw new UsageError(`${a} needs a value`);
-      return argv[++i];
-    };
-    const int = (name) => {
-      const v = value();
-      if (!/^\d+$/.test(v)) throw new UsageError(`${name} must be a non-negative integer, not "${v}"`);
-      return Number(v);
-    };
-    const choice = (name, allowed) => {
-      const v = value();
-      if (!allowed.includes(v)) throw new UsageError(`${name} must be one of ${allowed.join(", ")}, not "${v}"`);
-      return v;
-    };
-    if (a === "--help" || a === "-h") { console.log(HELP); process.exit(0); }
-    else if (a === "--split") o.split = int(a);
-    else if (a === "--compression") o.compression = choice(a, ["none", "zstd-file", "zstd-message"]);
-    else if (a === "--ros-distro") o.distro = choice(a, Object.keys(DISTROS));
-    else if (a === "--no-metadata") o.metadata = false;
-    else if (a === "--big-endian") o.bigEndian = true;
-    else if (a === "--max-scans") o.maxScans = int(a);
-    else if (a === "--padding") o.padding = int(a);
-    else if (a === "--organised") o.organised = int(a);
-    else if (a === "--point-times") o.pointTimesDir = value();
-    else if (a === "--log-time-offset") {
-      const v = value();
-      if (!/^-?\d+(\.\d*)?$/.test(v)) throw new UsageError(`--log-time-offset must be seconds, not "${v}"`);
-      o.logTimeOffset = secondsToNs(v);
-    } else if (a === "--python") o.python = value();
-    else if (a === "--manifest") o.manifest = value();
-    else if (a.startsWith("-")) throw new UsageError(`unknown option ${a}`);
-    else o.positional.push(a);
-  }
-  if (o.positional.length !== 2) throw new UsageError("expected SEQUENCE_DIR and OUT_DIR");
+// write_rosbag2.mjs's own options (the shared ones are in args.mjs).
+function ownOption(a, o, read) {
+  if (a === "--split") o.split = read.int(a);
+  else if (a === "--compression") o.compression = read.choice(a, ["none", "zstd-file", "zstd-message"]);
+  else if (a === "--ros-distro") o.distro = read.choice(a, Object.keys(DISTROS));
+  else if (a === "--no-metadata") o.metadata = false;
+  else if (a === "--python") o.python = read.value();
+  else return false;
+  return true;
+}
+
+function parseRosbag2Arguments(argv) {
+  const o = parseArguments(argv, HELP, { split: 1, compression: "none", distro: "jazzy", metadata: true,
+    python: "python3" }, ownOption, "expected SEQUENCE_DIR and OUT_DIR");
   if (o.split < 1) throw new UsageError("--split must be at least 1");
   return o;
 }
@@ -104,7 +79,7 @@ function metadataYaml(o, topics, files, messages) {
 }
 
 function main() {
-  const o = parseArguments(process.argv.slice(2));
+  const o = parseRosbag2Arguments(process.argv.slice(2));
   const [sequenceDir, outDir] = o.positional;
   if (fs.existsSync(outDir) && fs.readdirSync(outDir).length > 0) throw new UsageError(`${outDir} exists and is not empty`);
   fs.mkdirSync(outDir, { recursive: true });
@@ -152,14 +127,7 @@ function main() {
     files.push({ name: fileName, first: part[0].logTime, last: part[part.length - 1].logTime, count: part.length });
   }
   if (o.metadata) fs.writeFileSync(path.join(outDir, "metadata.yaml"), metadataYaml(o, topics, files, messages));
-  if (o.manifest)
-    fs.writeFileSync(o.manifest, messages.map((m) => JSON.stringify({ topic: m.topic, type: m.plainType,
-      log_time_ns: m.logTime.toString(), size: m.data.length, crc32: zlib.crc32(m.data) })).join("\n") + "\n");
+  writeManifest(o.manifest, messages.map((m) => manifestLine(m.topic, m.plainType, m.logTime, m.data)));
 }
 
-try {
-  main();
-} catch (e) {
-  console.error(`write_rosbag2.mjs: ${e.message}`);
-  process.exit(e instanceof UsageError ? 2 : 1);
-}
+runMain("write_rosbag2.mjs", main);

@@ -1,5 +1,6 @@
 #include "slamvdb/recording/decompress.hpp"
 
+#include <bzlib.h>
 #include <fcntl.h>
 #include <fmt/format.h>
 #include <fmt/std.h>
@@ -81,33 +82,90 @@ void Decompressor::zstd_exact(std::span<const std::uint8_t> in, std::span<std::u
     throw Error(fmt::format("{}: the zstd data decompresses to {} bytes, not the {} declared", where, n, out.size()));
 }
 
-void Decompressor::lz4_frame_exact(std::span<const std::uint8_t> in, std::span<std::uint8_t> out,
-                                   std::string_view where, bool checksums) {
+namespace decompress_detail {
+
+// Where one run of the LZ4 frame decoder stopped.
+struct Lz4Run {
   std::size_t in_pos = 0, out_pos = 0;
-  std::size_t hint = 1;
+  std::size_t hint = 1;   // LZ4F_decompress's last return: 0 at the end of a frame
+  std::size_t error = 0;  // an LZ4F error code (hint is then the size before it), 0 if none
+  bool output_full = false;  // no progress: the output is full with input left
+};
+
+// The one LZ4 frame decoding loop: feeds `in` to `context`, writing `out` front to back, until the
+// input is used up, an error, the output is full, or (`one_frame`) the end of the first frame.
+// After an error or a stop inside a frame the context is in an undefined state: the caller renews it.
+Lz4Run run_lz4_frames(LZ4F_dctx* context, std::span<const std::uint8_t> in, std::span<std::uint8_t> out,
+                      bool checksums, bool one_frame) {
+  Lz4Run run;
   LZ4F_decompressOptions_t options{};
   options.stableDst = 1;  // one output buffer, written front to back: no copies through LZ4F's own
   options.skipChecksums = checksums ? 0 : 1;
-  while (in_pos < in.size()) {
-    std::size_t out_size = out.size() - out_pos, in_size = in.size() - in_pos;
-    hint = LZ4F_decompress(contexts_->lz4, out.data() + out_pos, &out_size, in.data() + in_pos, &in_size, &options);
+  while (run.in_pos < in.size()) {
+    std::size_t out_size = out.size() - run.out_pos, in_size = in.size() - run.in_pos;
+    const std::size_t hint =
+        LZ4F_decompress(context, out.data() + run.out_pos, &out_size, in.data() + run.in_pos, &in_size, &options);
     if (LZ4F_isError(hint)) {
-      contexts_->renew_lz4();
-      throw Error(fmt::format("{}: the LZ4 data is damaged ({})", where, LZ4F_getErrorName(hint)));
+      run.error = hint;
+      break;
     }
-    in_pos += in_size;
-    out_pos += out_size;
-    if (in_size == 0 && out_size == 0) break;  // no progress: output full with input left
+    run.hint = hint;
+    run.in_pos += in_size;
+    run.out_pos += out_size;
+    if (hint == 0 && one_frame) break;  // the frame ended (its checksum was checked)
+    if (in_size == 0 && out_size == 0) {
+      run.output_full = true;
+      break;
+    }
   }
-  if (hint != 0 || in_pos != in.size()) {
+  return run;
+}
+
+}  // namespace decompress_detail
+
+void Decompressor::lz4_frame_exact(std::span<const std::uint8_t> in, std::span<std::uint8_t> out,
+                                   std::string_view where, bool checksums) {
+  const decompress_detail::Lz4Run run = decompress_detail::run_lz4_frames(contexts_->lz4, in, out, checksums, false);
+  if (run.error != 0) {
     contexts_->renew_lz4();
-    if (out_pos == out.size() && in_pos != in.size())
+    throw Error(fmt::format("{}: the LZ4 data is damaged ({})", where, LZ4F_getErrorName(run.error)));
+  }
+  if (run.hint != 0 || run.in_pos != in.size()) {
+    contexts_->renew_lz4();
+    if (run.out_pos == out.size() && run.in_pos != in.size())
       throw Error(fmt::format("{}: the LZ4 data decompresses to more than the {} bytes declared", where, out.size()));
     throw Error(fmt::format("{}: the LZ4 data ends inside a frame (truncated)", where));
   }
-  if (out_pos != out.size())
+  if (run.out_pos != out.size())
     throw Error(
-        fmt::format("{}: the LZ4 data decompresses to {} bytes, not the {} declared", where, out_pos, out.size()));
+        fmt::format("{}: the LZ4 data decompresses to {} bytes, not the {} declared", where, run.out_pos, out.size()));
+}
+
+Decompressed Decompressor::lz4_frame_recover(std::span<const std::uint8_t> in, std::size_t max_size,
+                                             std::vector<std::uint8_t>& output) {
+  // LZ4 expands a byte into at most 255 (a match length extension): a larger claimed size is
+  // damage, and is not allocated. The output is allocated once: with linked blocks the decoder
+  // refers back into it, so it must not move.
+  output.resize(std::min<std::uint64_t>(max_size, std::uint64_t{in.size()} * kMaxLz4Ratio + 65536));
+  const decompress_detail::Lz4Run run = decompress_detail::run_lz4_frames(contexts_->lz4, in, output, true, true);
+  Decompressed result;
+  result.size = run.out_pos;
+  output.resize(result.size);
+  if (run.error != 0)
+    result.problem = fmt::format("lz4 data damaged after {} of {} bytes: {}", run.in_pos, in.size(),
+                                 LZ4F_getErrorName(run.error));
+  else if (run.output_full)
+    result.problem = fmt::format("lz4 data decompress to more than the {} bytes recorded", max_size);
+  else if (run.hint != 0)
+    result.problem = fmt::format("the lz4 data end after {} bytes, inside a frame (truncated)", in.size());
+  else if (run.in_pos != in.size())
+    result.problem = fmt::format("{} bytes follow the end of the lz4 frame", in.size() - run.in_pos);
+  else if (result.size != max_size)
+    result.problem = fmt::format("lz4 data decompress to {} bytes, not the {} recorded", result.size, max_size);
+  else
+    result.complete = true;
+  if (run.error != 0 || run.hint != 0) contexts_->renew_lz4();
+  return result;
 }
 
 void Decompressor::zstd_any(std::span<const std::uint8_t> in, ByteBuffer& out, std::uint64_t max_out,
@@ -147,6 +205,65 @@ void Decompressor::zstd_any(std::span<const std::uint8_t> in, ByteBuffer& out, s
     output.size = out.size();
   }
   out.resize(output.pos, where, true);
+}
+
+Decompressed decompress_bz2(std::span<const std::uint8_t> input, std::size_t max_size,
+                            std::vector<std::uint8_t>& output) {
+  Decompressed result;
+  bz_stream stream{};
+  if (BZ2_bzDecompressInit(&stream, 0, 0) != BZ_OK) {
+    result.problem = "cannot create a bzip2 decompression context";
+    output.clear();
+    return result;
+  }
+  // bzip2 can expand a few bytes into megabytes: the output grows with the data, never to a
+  // claimed size up front. One byte more than max_size is room to see that there is more.
+  const std::size_t cap = max_size + 1;
+  output.resize(std::min(cap, std::max<std::size_t>(input.size() * 4, 1 << 16)));
+  std::size_t fed = 0;
+  int status = BZ_OK;
+  while (true) {
+    if (stream.avail_in == 0 && fed < input.size()) {  // fed in pieces: avail_in is 32 bits
+      const std::size_t more = std::min<std::size_t>(input.size() - fed, 1u << 30);
+      stream.next_in = const_cast<char*>(reinterpret_cast<const char*>(input.data() + fed));
+      stream.avail_in = static_cast<unsigned>(more);
+      fed += more;
+    }
+    if (result.size == output.size()) {
+      if (output.size() >= cap) break;
+      output.resize(std::min(cap, output.size() * 2));
+    }
+    stream.next_out = reinterpret_cast<char*>(output.data() + result.size);
+    stream.avail_out = static_cast<unsigned>(std::min<std::size_t>(output.size() - result.size, 1u << 30));
+    const unsigned out_before = stream.avail_out, in_before = stream.avail_in;
+    status = BZ2_bzDecompress(&stream);
+    result.size += out_before - stream.avail_out;
+    if (status != BZ_OK) break;
+    if (stream.avail_out == out_before && stream.avail_in == in_before) break;  // no progress: input ended
+  }
+  const std::size_t left_over = stream.avail_in + (input.size() - fed);
+  BZ2_bzDecompressEnd(&stream);
+  output.resize(result.size);
+  if (status == BZ_STREAM_END) {
+    if (left_over > 0)
+      result.problem = fmt::format("{} bytes follow the end of the bzip2 stream", left_over);
+    else if (result.size > max_size)
+      result.problem = fmt::format("bzip2 data decompress to more than the {} bytes recorded", max_size);
+    else if (result.size != max_size)
+      result.problem = fmt::format("bzip2 data decompress to {} bytes, not the {} recorded", result.size, max_size);
+    else
+      result.complete = true;
+  } else if (status == BZ_OK && result.size > max_size) {
+    result.problem = fmt::format("bzip2 data decompress to more than the {} bytes recorded", max_size);
+  } else if (status == BZ_OK) {
+    result.problem = fmt::format("the bzip2 data end after {} bytes, inside the stream (truncated)", input.size());
+  } else {
+    result.problem = fmt::format("bzip2 data damaged (libbz2 error {}{})", status,
+                                 status == BZ_DATA_ERROR_MAGIC ? ": not bzip2 data"
+                                 : status == BZ_DATA_ERROR     ? ": a block's CRC does not match"
+                                                               : "");
+  }
+  return result;
 }
 
 std::uint64_t decompress_zstd_file(const std::filesystem::path& in, const std::filesystem::path& out,

@@ -18,7 +18,7 @@ Ros1BagReader::Ros1BagReader(const std::filesystem::path& path, const Ros1BagOpt
   char magic[kMagic.size()] = {};
   if (file_.size() < kMagic.size())
     throw Error(fmt::format("ROS 1 bag {} has {} bytes: too short for a bag", path_, file_.size()));
-  read_at(0, magic, sizeof(magic));
+  file_.read_at(0, magic, sizeof(magic), "the bag's magic line");
   const std::string_view found(magic, sizeof(magic));
   if (found != kMagic) {
     if (found.starts_with("#ROSRECORD V1") || found.starts_with("#ROSBAG V1"))
@@ -121,7 +121,7 @@ bool Ros1BagReader::read_index(const BagHeader& header) {
         throw Error(fmt::format("at offset {}: a record of {} data bytes runs past the end of the file", offset,
                                 record->data_length));
       data.resize(record->data_length);
-      read_at(record->data_offset, data.data(), data.size());
+      file_.read_at(record->data_offset, data.data(), data.size(), "an index record's data");
       const RecordFields fields(record->header);
       const std::uint8_t op = fields.op();
       if (op == static_cast<std::uint8_t>(Op::kConnection))

@@ -1,13 +1,10 @@
 // The ROS 1 bag reader's records and chunks, and the linear reading of a bag without index.
 #include <fmt/format.h>
-#include <unistd.h>
 
 #include <algorithm>
-#include <cerrno>
-#include <cstring>
 
 #include "slamvdb/core/error.hpp"
-#include "slamvdb/recording/chunk_decompress.hpp"
+#include "slamvdb/recording/decompress.hpp"
 #include "slamvdb/recording/ros1_bag_reader.hpp"
 
 namespace slamvdb::recording::ros1 {
@@ -25,20 +22,6 @@ std::uint32_t bag_u32(const std::uint8_t* p) {
 
 }  // namespace chunks_detail
 
-void Ros1BagReader::read_at(std::uint64_t offset, void* destination, std::size_t bytes) {
-  auto* out = static_cast<std::uint8_t*>(destination);
-  std::size_t done = 0;
-  while (done < bytes) {
-    const ssize_t n = ::pread(file_.fd(), out + done, bytes - done, static_cast<off_t>(offset + done));
-    if (n < 0 && errno == EINTR) continue;
-    if (n < 0) fail(offset + done, fmt::format("cannot read: {}", std::strerror(errno)));
-    if (n == 0)
-      fail(offset + done, fmt::format("the file ended {} bytes early (did it shrink while being read?)", bytes - done));
-    done += static_cast<std::size_t>(n);
-  }
-  bytes_read_ += bytes;
-}
-
 std::optional<FileRecord> Ros1BagReader::read_record(std::uint64_t offset, std::string& why) {
   const std::uint64_t size = file_.size();
   if (offset > size || size - offset < 8) {
@@ -46,7 +29,7 @@ std::optional<FileRecord> Ros1BagReader::read_record(std::uint64_t offset, std::
     return std::nullopt;
   }
   std::uint8_t length[4];
-  read_at(offset, length, 4);
+  file_.read_at(offset, length, 4, "a record's header length");
   const std::uint32_t header_length = chunks_detail::bag_u32(length);
   if (header_length > kMaxRecordHeaderBytes) {
     why = fmt::format("a record header of {} bytes (damaged: real ones have a few dozen)", header_length);
@@ -59,8 +42,8 @@ std::optional<FileRecord> Ros1BagReader::read_record(std::uint64_t offset, std::
   FileRecord record;
   record.offset = offset;
   record.header.resize(header_length);
-  read_at(offset + 4, record.header.data(), header_length);
-  read_at(offset + 4 + header_length, length, 4);
+  file_.read_at(offset + 4, record.header.data(), header_length, "a record header");
+  file_.read_at(offset + 4 + header_length, length, 4, "a record's data length");
   record.data_length = chunks_detail::bag_u32(length);
   record.data_offset = offset + 8 + header_length;
   return record;  // its data may run past the end of the file: the callers decide
@@ -102,17 +85,18 @@ std::string Ros1BagReader::load_chunk(const FileRecord& record, OpenChunk& chunk
   compressions_.insert(compression);
   if (compression == "none") {
     chunk.data.resize(available);
-    read_at(record.data_offset, chunk.data.data(), chunk.data.size());
+    file_.read_at(record.data_offset, chunk.data.data(), chunk.data.size(), "a chunk's data");
     if (loss.empty() && size != record.data_length)
       fail(record.offset, fmt::format("an uncompressed chunk of {} bytes records its size as {}", record.data_length,
                                       size));
     return loss;
   }
   compressed_.resize(available);
-  read_at(record.data_offset, compressed_.data(), compressed_.size());
+  file_.read_at(record.data_offset, compressed_.data(), compressed_.size(), "a chunk's data");
   const std::size_t max_size = unfinished ? chunks_detail::kMaxUnfinishedChunkOutput : size;
-  const Decompressed result = compression == "lz4" ? decompress_lz4_frame(compressed_, max_size, chunk.data)
-                                                   : decompress_bz2(compressed_, max_size, chunk.data);
+  const Decompressed result = compression == "lz4"
+                                  ? decompressor_.lz4_frame_recover(compressed_, max_size, chunk.data)
+                                  : decompress_bz2(compressed_, max_size, chunk.data);
   if (compressed_.capacity() > (std::size_t{64} << 20)) compressed_ = {};  // no big buffer kept for a rare chunk
   if (result.complete) return loss;
   if (!salvage) fail(record.offset, fmt::format("the chunk's {} data are damaged: {}", compression, result.problem));
@@ -244,7 +228,7 @@ void Ros1BagReader::advance_linear() {
   if (cut) return stop(fmt::format("the file ends inside a {} record", op_name(op)));
   // A connection or message outside any chunk: an unfinished uncompressed chunk's records.
   current_.data.resize(record->data_length);
-  read_at(record->data_offset, current_.data.data(), current_.data.size());
+  file_.read_at(record->data_offset, current_.data.data(), current_.data.size(), "a record's data");
   try {
     const RecordFields fields(record->header);
     if (op == static_cast<std::uint8_t>(Op::kConnection)) {

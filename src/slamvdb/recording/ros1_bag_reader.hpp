@@ -9,7 +9,8 @@
 #include <string>
 #include <vector>
 
-#include "slamvdb/core/regular_file.hpp"
+#include "slamvdb/recording/decompress.hpp"
+#include "slamvdb/recording/positional_file.hpp"
 #include "slamvdb/recording/ros1_bag.hpp"
 #include "slamvdb/recording/ros1_bag_records.hpp"
 
@@ -52,7 +53,7 @@ class Ros1BagReader final : public RecordingReader {
   std::uint64_t size_bytes() const override { return file_.size(); }
   void select(const std::set<std::uint32_t>& channel_ids) override { selected_ = channel_ids; }
   bool next(Message& out) override;
-  std::uint64_t bytes_read() const override { return bytes_read_; }
+  std::uint64_t bytes_read() const override { return file_.bytes_read(); }
   std::vector<std::string> notes() const override;
 
  private:
@@ -68,7 +69,6 @@ class Ros1BagReader final : public RecordingReader {
   [[noreturn]] void fail(std::uint64_t offset, std::string_view what) const;
 
   // ros1_bag_chunks.cpp
-  void read_at(std::uint64_t offset, void* destination, std::size_t bytes);
   std::optional<FileRecord> read_record(std::uint64_t offset, std::string& why);
   RecordFields fields_of(const FileRecord& record) const;
   // Decompresses the chunk record into chunk.data. `salvage`: a chunk cut by the end of the
@@ -86,8 +86,7 @@ class Ros1BagReader final : public RecordingReader {
 
   std::filesystem::path path_;
   Ros1BagOptions options_;
-  RegularFile file_;
-  std::uint64_t bytes_read_ = 0;
+  PositionalFile file_;
   std::vector<Channel> channels_;
   bool channels_reserved_ = false;  // no index: channels found while reading, in reserved room
   std::map<std::uint32_t, std::size_t> channel_of_connection_;
@@ -99,6 +98,7 @@ class Ros1BagReader final : public RecordingReader {
   std::int64_t last_time_ns_ = INT64_MIN;
   bool out_of_order_noted_ = false;
   std::vector<std::uint8_t> compressed_;  // reused for each chunk's compressed bytes
+  Decompressor decompressor_;
 
   bool indexed_ = false;
   // Indexed: the chunks by (start time, file offset), the next to open, the open ones and the

@@ -6,6 +6,13 @@
 // encoded_message_definition, ...). Messages come out ordered by (timestamp, id): the order
 // rosbag2 itself reads them in, equal times in the order they were written. Opened read-only
 // without locking (immutable), so a bag on a read-only medium reads and no -shm/-wal files appear.
+// Why not store/sqlite_db.hpp's Database/Statement (which recording/ may not link: store/ is a
+// later part): the overlap is a guard that finalizes a statement and a column-to-string helper
+// (~20 lines), while the error models differ. The map store's errors speak of a slamvdb map
+// ("not an SQLite database, so not a slamvdb map") and carry no context; every error here names
+// the bag file and what was being done, and a damaged bag is not a damaged map. A shared wrapper in
+// its own part would need an error-wording hook at each call and would hold the long-lived, resumable
+// message query in an optional: more code than it removes. Revisit if a third SQLite reader appears.
 #include <sqlite3.h>
 
 #include <cstdint>

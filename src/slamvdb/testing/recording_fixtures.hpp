@@ -12,6 +12,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <string>
 #include <vector>
 
@@ -26,25 +27,35 @@ inline std::filesystem::path recording_fixtures_dir() {
   return std::filesystem::path(SLAMVDB_SOURCE_DIR) / "tests" / "recording_fixtures";
 }
 
-// A small SIMULATED drive (1.5 m: 4 scans of 64 x 256 points, 2 camera images of 160 x 100) in
-// the RELLIS-3D layout, written into `dir`.
-inline void write_recording_sequence(const std::filesystem::path& dir) {
+// The small SIMULATED drive the fixture writers record (1.5 m: 4 scans of 64 x 256 points, 2
+// camera images of 160 x 100).
+inline synth::SynthConfig recording_sequence_config() {
   synth::SynthConfig config;
   config.length_m = 1.5;
   config.image_width = 160;
   config.image_height = 100;
   config.lidar.columns = 256;
+  return config;
+}
+
+// A SIMULATED drive in the RELLIS-3D layout, written into `dir`.
+inline void write_recording_sequence(const std::filesystem::path& dir,
+                                     const synth::SynthConfig& config = recording_sequence_config()) {
   synth::write_synthetic_sequence(config, dir, true);
 }
 
-// `node tests/recording_fixtures/<script> <args>` (args already shell-quoted); the test fails
-// with the writer's output when it does not exit 0.
+// Runs tests/recording_fixtures/<script> <args> (args already shell-quoted): a .py with Debian's
+// python3, a .mjs with node. The test fails with the writer's output when it does not exit 0.
 inline bool run_fixture_writer(const std::string& script, const std::string& args) {
-  const CommandResult r =
-      run_command("exec node " + quote_path(recording_fixtures_dir() / script) + " " + args + " 2>&1", 300.0);
+  const bool python = std::filesystem::path(script).extension() == ".py";
+  const CommandResult r = run_command(std::string("exec ") + (python ? "/usr/bin/python3 " : "node ") +
+                                          quote_path(recording_fixtures_dir() / script) + " " + args + " 2>&1",
+                                      300.0);
   if (!r.exited() || r.exit_code != 0) {
     ADD_FAILURE() << script << " " << args << " failed (exit " << r.exit_code << ", signal " << r.signal
-                  << "; are node and tests/recording_fixtures/node_modules installed? scripts/setup.sh does it):\n"
+                  << (python ? "; is python3-rosbag installed?"
+                             : "; are node and tests/recording_fixtures/node_modules installed?")
+                  << " scripts/setup.sh does it):\n"
                   << r.output;
     return false;
   }
@@ -56,10 +67,12 @@ struct WrittenMessage {
   std::int64_t log_time_ns = 0;
   std::uint64_t size = 0;
   std::uint32_t crc32 = 0;
+  bool in_finished_chunk = true;  // write_ros1_bag.py --kill-after: false past the last finished chunk
   bool operator==(const WrittenMessage&) const = default;
 };
 
-// The writer's manifest, in writing order.
+// The writer's manifest, in writing order (the log time is a string in the Node writers'
+// manifests, for BigInt, and a number in write_ros1_bag.py's).
 inline std::vector<WrittenMessage> read_manifest(const std::filesystem::path& file) {
   std::vector<WrittenMessage> out;
   std::ifstream in(file);
@@ -67,9 +80,11 @@ inline std::vector<WrittenMessage> read_manifest(const std::filesystem::path& fi
   while (std::getline(in, line)) {
     if (line.empty()) continue;
     const auto j = nlohmann::json::parse(line);
+    const auto& log_time = j.at("log_time_ns");
     out.push_back({j.at("topic").get<std::string>(), j.at("type").get<std::string>(),
-                   std::stoll(j.at("log_time_ns").get<std::string>()), j.at("size").get<std::uint64_t>(),
-                   j.at("crc32").get<std::uint32_t>()});
+                   log_time.is_string() ? std::stoll(log_time.get<std::string>()) : log_time.get<std::int64_t>(),
+                   j.at("size").get<std::uint64_t>(), j.at("crc32").get<std::uint32_t>(),
+                   j.value("in_finished_chunk", true)});
   }
   return out;
 }
@@ -118,6 +133,31 @@ inline ::testing::AssertionResult same_messages(const std::vector<WrittenMessage
   if (expected.size() != read.size())
     return ::testing::AssertionFailure() << expected.size() << " messages written, " << read.size() << " read";
   return ::testing::AssertionSuccess();
+}
+
+// Checks a reader's channels against the manifest (one per topic: its type, `serialization` and
+// the encoding that names it, its message count) and its time range against the first and last
+// log times written.
+inline void expect_channels_of(const recording::RecordingReader& reader, const std::vector<WrittenMessage>& written,
+                               recording::Serialization serialization) {
+  std::map<std::string, std::uint64_t> count;
+  for (const auto& w : written) ++count[w.topic];
+  ASSERT_EQ(reader.channels().size(), count.size());
+  for (const recording::Channel& c : reader.channels()) {
+    SCOPED_TRACE(c.topic);
+    const auto it = std::find_if(written.begin(), written.end(), [&](const auto& w) { return w.topic == c.topic; });
+    ASSERT_NE(it, written.end());
+    EXPECT_EQ(c.type, it->type);  // in ROS 1 form ("sensor_msgs/msg/PointCloud2" in a ROS 2 bag)
+    EXPECT_EQ(c.serialization, serialization);
+    EXPECT_EQ(c.encoding, serialization == recording::Serialization::kCdr ? "cdr" : "ros1");
+    ASSERT_TRUE(c.message_count.has_value());  // from a summary or index, or counted
+    EXPECT_EQ(*c.message_count, count[c.topic]);
+  }
+  const auto [first, last] = std::minmax_element(
+      written.begin(), written.end(), [](const auto& a, const auto& b) { return a.log_time_ns < b.log_time_ns; });
+  ASSERT_TRUE(reader.time_range().has_value());
+  EXPECT_EQ(reader.time_range()->start_ns, first->log_time_ns);
+  EXPECT_EQ(reader.time_range()->end_ns, last->log_time_ns);
 }
 
 // A reader's notes, one per line.

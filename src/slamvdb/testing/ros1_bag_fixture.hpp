@@ -13,23 +13,28 @@
 #include <fstream>
 #include <iterator>
 #include <map>
-#include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
 
 #include "slamvdb/recording/recording.hpp"
-#include "slamvdb/testing/recording_fixtures.hpp"  // ReadMessage, read_all
+#include "slamvdb/synth/sequence_writer.hpp"
+#include "slamvdb/testing/recording_fixtures.hpp"
 #include "slamvdb/testing/run_command.hpp"
 
 namespace slamvdb::testing {
 
-// A simulated sequence (slamvdb synth), made once per process and shared by the bag tests.
+// A SIMULATED sequence (2 m, 128 LiDAR columns, 64 x 40 images, no-return points kept as zeros),
+// made once per process and shared by the bag tests.
 inline const std::filesystem::path& ros1_bag_test_sequence() {
   static const std::filesystem::path dir = [] {
     const auto d = std::filesystem::temp_directory_path() / ("slamvdb-ros1-sequence-" + std::to_string(::getpid()));
-    std::filesystem::remove_all(d);
-    const CommandResult r = run_cli("synth " + quote_path(d) + " --length 2 --lidar-columns 128 --image-size 64x40 --keep-no-return");
-    if (r.exit_code != 0) ADD_FAILURE() << "synth failed: " << r.output;
+    synth::SynthConfig config;
+    config.length_m = 2;
+    config.lidar.columns = 128;
+    config.image_width = 64;
+    config.image_height = 40;
+    config.keep_no_return = true;
+    write_recording_sequence(d, config);
     std::atexit([] {
       std::error_code ec;
       std::filesystem::remove_all(
@@ -40,60 +45,25 @@ inline const std::filesystem::path& ros1_bag_test_sequence() {
   return dir;
 }
 
-struct ManifestMessage {
-  std::size_t seq = 0;
-  std::string topic, type;
-  std::int64_t log_time_ns = 0, stamp_ns = 0;
-  std::size_t size = 0;
-  std::uint32_t crc32 = 0;
-};
-
 struct WrittenBag {
   std::filesystem::path path;
-  std::vector<ManifestMessage> messages;  // in the order written
-  std::size_t in_finished_chunks = 0;     // --kill-after: the leading messages in finished chunks
+  std::vector<WrittenMessage> messages;  // in the order written
+  std::size_t in_finished_chunks = 0;    // --kill-after: the leading messages in finished chunks
   // The messages as a reader in log-time order gives them (equal times in the order written).
-  std::vector<ManifestMessage> in_time_order() const {
-    std::vector<ManifestMessage> sorted = messages;
-    std::stable_sort(sorted.begin(), sorted.end(),
-                     [](const auto& a, const auto& b) { return a.log_time_ns < b.log_time_ns; });
-    return sorted;
-  }
+  std::vector<WrittenMessage> in_time_order() const { return in_log_time_order(messages); }
 };
 
-// Writes `dir/name` from the shared sequence with write_ros1_bag.py `options`.
+// Writes `dir/name` from the shared sequence with write_ros1_bag.py `options`, and reads its manifest.
 inline WrittenBag write_ros1_bag(const std::filesystem::path& dir, const std::string& name, const std::string& options) {
   WrittenBag bag;
   bag.path = dir / name;
   const std::filesystem::path manifest = dir / (name + ".json");
-  const std::filesystem::path script =
-      std::filesystem::path(SLAMVDB_SOURCE_DIR) / "tests" / "recording_fixtures" / "write_ros1_bag.py";
-  const CommandResult r = run_command("exec /usr/bin/python3 " + quote_path(script) + " " +
-                                      quote_path(ros1_bag_test_sequence()) + " " + quote_path(bag.path) + " " +
-                                      options + " --manifest " + quote_path(manifest));
-  EXPECT_EQ(r.exit_code, 0) << "write_ros1_bag.py " << options << ":\n" << r.output;
-  std::ifstream in(manifest);  // JSON lines, one per message in the order written
-  for (std::string line; std::getline(in, line);) {
-    if (line.empty()) continue;
-    const nlohmann::json m = nlohmann::json::parse(line);
-    bag.messages.push_back({m["seq"], m["topic"], m["type"], m["log_time_ns"], m["stamp_ns"], m["size"], m["crc32"]});
-    if (m["in_finished_chunk"].get<bool>()) bag.in_finished_chunks = bag.messages.size();
-  }
+  run_fixture_writer("write_ros1_bag.py", quote_path(ros1_bag_test_sequence()) + " " + quote_path(bag.path) + " " +
+                                              options + " --manifest " + quote_path(manifest));
+  bag.messages = read_manifest(manifest);
+  for (std::size_t i = 0; i < bag.messages.size(); ++i)
+    if (bag.messages[i].in_finished_chunk) bag.in_finished_chunks = i + 1;
   return bag;
-}
-
-// Checks that `read` is `expected` (topic, type, log time, bytes), message by message.
-inline void expect_same_messages(const std::vector<ReadMessage>& read, const std::vector<ManifestMessage>& expected) {
-  ASSERT_EQ(read.size(), expected.size());
-  for (std::size_t i = 0; i < read.size(); ++i) {
-    SCOPED_TRACE("message " + std::to_string(i) + " (written " + std::to_string(expected[i].seq) + ")");
-    EXPECT_EQ(read[i].index, i);
-    EXPECT_EQ(read[i].topic, expected[i].topic);
-    EXPECT_EQ(read[i].type, expected[i].type);
-    EXPECT_EQ(read[i].log_time_ns, expected[i].log_time_ns);
-    EXPECT_EQ(read[i].size, expected[i].size);
-    EXPECT_EQ(read[i].crc32, expected[i].crc32);
-  }
 }
 
 inline std::vector<std::uint8_t> file_bytes(const std::filesystem::path& path) {
