@@ -21,7 +21,8 @@
 #include "slamvdb/testing/run_command.hpp"
 
 namespace slamvdb {
-namespace {
+// Named, not anonymous: the unity build merges test files.
+namespace recording_commands_test {
 
 namespace fs = std::filesystem;
 using testing::quote_path;
@@ -253,5 +254,5 @@ TEST_F(RecordingCommands, InspectSaysWhatARecordingHoldsAndWhichTopicsItWouldUse
       << folder.output;
 }
 
-}  // namespace
+}  // namespace recording_commands_test
 }  // namespace slamvdb
