@@ -221,6 +221,34 @@ TEST_F(RecordingCommands, DamagedRecordingIsAClearErrorNeverACrash) {
     }
 }
 
+TEST_F(RecordingCommands, AMessageThatDoesNotDecodeIsAnErrorOrSkippedAndCounted) {
+  // The second scan's bytes cut in half by python3-rosbag's raw writing: its header and layout
+  // decode, its data is shorter than height x row_step.
+  const fs::path bag = inputs()[1].second, bad = dir() / "bad_scan.bag";
+  const fs::path py = dir() / "bad_scan.py";
+  std::ofstream(py) << "import rosbag, sys\n"
+                       "n = 0\n"
+                       "with rosbag.Bag(sys.argv[2], 'w') as o:\n"
+                       "  for t, m, ts in rosbag.Bag(sys.argv[1]).read_messages(raw=True):\n"
+                       "    if t == '/os1_cloud_node/points':\n"
+                       "      n += 1\n"
+                       "      if n == 2: m = (m[0], m[1][:len(m[1]) // 2], m[2], m[3], m[4])\n"
+                       "    o.write(t, m, ts, raw=True)\n";
+  const auto written = run_command("exec /usr/bin/python3 " + quote_path(py) + " " + quote_path(bag) + " " +
+                                   quote_path(bad) + " 2>&1");
+  ASSERT_EQ(written.exit_code, 0) << written.output;
+  auto r = slamvdb("odometry " + quote_path(bad) + " -o " + quote_path(dir() / "bad.txt"));
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_NE(r.output.find("/os1_cloud_node/points message"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("does not decode"), std::string::npos) << r.output;
+  r = slamvdb("map " + quote_path(bad) + " -o " + quote_path(dir() / "bad.svdb") + " --features none --skip-bad-messages");
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("messages that do not decode 1 skipped"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("scans: " + std::to_string(non_blank_lines(seq() / "times.txt") - 1) + " integrated"),
+            std::string::npos)
+      << r.output;
+}
+
 TEST_F(RecordingCommands, InspectSaysWhatARecordingHoldsAndWhichTopicsItWouldUse) {
   for (const std::size_t i : {1u, 3u}) {
     const fs::path input = inputs()[i].second;
