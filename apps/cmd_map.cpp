@@ -1,13 +1,16 @@
-// `slamvdb map`: replays a dataset (RELLIS-3D or KITTI layout) into a semantic voxel map file.
+// `slamvdb map`: replays a dataset (RELLIS-3D or KITTI layout) or a robot recording (ROS 1 bag, ROS 2
+// bag, MCAP) into a semantic voxel map file.
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
+#include <chrono>
 #include <memory>
 #include <optional>
 #include <regex>
 
 #include "colour_basis_option.hpp"
 #include "command_registry.hpp"
+#include "input_options.hpp"
 #include "io_options.hpp"
 #include "yaml_config.hpp"
 #include "map_option_checks.hpp"
@@ -51,10 +54,21 @@ struct Options {
   std::string fusion_weighting = "paper";
   double max_image_pixels = static_cast<double>(kDefaultMaxImagePixels);
   ColourBasisChoice colour_basis;
+  RecordingOptions recording;
 };
 
-std::unique_ptr<FeatureSource> make_feature_source(const Options& opt, const Sequence& seq) {
+std::unique_ptr<FeatureSource> make_feature_source(const Options& opt, const SensorInput& input) {
   if (opt.features == "none") return nullptr;
+  const Sequence& seq = input.sequence();
+  if (input.is_recording() && !input.has_camera()) {
+    fmt::print("no camera in {}: geometry only (--features {} not used)\n", seq.root.string(), opt.features);
+    return nullptr;
+  }
+  if (input.is_recording() && opt.features == "simulated" && !input.has_labels())
+    throw Error(fmt::format("--features simulated reads SIMULATED label images: {} has no label topic (name one with "
+                            "--label-topic, or map with --features none or model)", seq.root.string()));
+  if (input.is_recording() && opt.features == "precomputed")
+    throw Error("--features precomputed reads features/<image>.npy beside a dataset folder: not available for a recording");
   if (!opt.model.empty() && opt.features != "model")
     throw Error("--model is given: use it with --features model");
   if (opt.features == "model") {
@@ -87,6 +101,9 @@ std::unique_ptr<FeatureSource> make_feature_source(const Options& opt, const Seq
     spdlog::warn("features are SIMULATED from the 2D label images (no network): {}; encoder {}", simulated_model_id(sim),
                  sim.describe());
     warn_missing_view_geometry(seq, sim);
+    if (input.is_recording())
+      spdlog::warn("a recording carries no SIMULATED view geometry: the SIMULATED encoder's range and grazing errors "
+                   "are off and its persistent errors follow the image, not the world");
     return std::make_unique<EncoderFeatureSource>(std::make_unique<SimulatedDenseEncoder>(sim),
                                                   EncoderFeatureSource::Input::kLabels);
   }
@@ -141,13 +158,15 @@ void run(Options opt, const std::string& config) {
   ReadOptions read_options;
   if (!opt.distortion.empty()) read_options.distortion = parse_distortion_option(opt.distortion);
   read_options.max_image_pixels = static_cast<std::int64_t>(opt.max_image_pixels);
-  const Sequence seq = read_sequence(opt.dataset, read_options);
-  fmt::print("sequence {} ({} layout): {} scans, {} images\n", seq.root.string(), seq.layout, seq.scans.size(),
-             seq.images.size());
-  for (const auto& note : seq.notes) fmt::print("  note: {}\n", escape_control(note));
+  InputOptions input_options = opt.recording.input_options();
+  input_options.read = read_options;
+  input_options.need_poses = opt.poses.empty() && !opt.odometry;
+  const auto input = open_input(opt.dataset, input_options);
+  const Sequence& seq = input->sequence();
+  print_input(*input);
   opt.pipeline.realtime = opt.realtime;
   opt.pipeline.queue_bytes = static_cast<std::size_t>(opt.queue_mb * 1e6);
-  const auto source = make_feature_source(opt, seq);
+  const auto source = make_feature_source(opt, *input);
   std::unique_ptr<PoseSource> pose_source = std::make_unique<DatasetPoses>();
   std::optional<ProgressBar> odometry_bar;
   if (!opt.poses.empty())
@@ -163,7 +182,7 @@ void run(Options opt, const std::string& config) {
     own_poses = odometry.get();
     pose_source = std::move(odometry);
   }
-  const Trajectory poses = pose_source->trajectory(seq);
+  const Trajectory poses = pose_source->trajectory(*input);
   if (odometry_bar) odometry_bar->finish();
   if (own_poses)
     for (const auto& line : own_poses->problems()) spdlog::warn("{}", escape_control(line));
@@ -190,10 +209,11 @@ void run(Options opt, const std::string& config) {
 
   std::optional<ProgressBar> bar;
   PipelineReport report;
-  SemanticMap map = continue_map(std::move(*start), seq, source.get(), opt.pipeline, report,
-                                 [&](std::size_t done, std::size_t total) {
-                                   if (!bar) bar.emplace("map", total);
-                                   bar->update(done);
+  const auto started = std::chrono::steady_clock::now();
+  SemanticMap map = continue_map(std::move(*start), *input, source.get(), opt.pipeline, report,
+                                 [&](std::size_t done, std::size_t total, const StreamProgress& read) {
+                                   if (!bar) bar.emplace("map", total, "scans");
+                                   bar->update(done, read_rate(read, started));
                                  });
   if (bar) bar->finish();
   fmt::print("{}\n", escape_control_keep_lines(report.summary()));
@@ -217,8 +237,12 @@ void add(CLI::App& root) {
   auto opt = std::make_shared<Options>();
   auto* cmd = root.add_subcommand("map",
                                   "Build a semantic voxel map from a dataset directory (RELLIS-3D or KITTI layout) "
-                                  "with its ground-truth poses, and save it as one map file");
-  cmd->add_option("dataset", opt->dataset, "Sequence directory")->required()->check(CLI::ExistingDirectory);
+                                  "or a recording (ROS 1 bag, ROS 2 bag, MCAP) with its ground-truth poses, and save "
+                                  "it as one map file");
+  cmd->add_option("dataset", opt->dataset,
+                  "Sequence directory, or a recording: ROS 1 .bag, .mcap, ROS 2 bag folder or .db3")
+      ->required()
+      ->check(CLI::ExistingPath);
   cmd->add_option("-o,--output", opt->output,
                   "Map file to write: started anew (an old file is replaced atomically) and grown by each finished "
                   "submap, so a killed run leaves every submap finished before the kill (see --resume)")->required();
@@ -321,6 +345,7 @@ void add(CLI::App& root) {
       ->check(finite_range(0, 1e7));
   add_max_memory_option(cmd, opt->max_memory_gb);
   add_colour_basis_option(cmd, opt->colour_basis);
+  opt->recording.add_to(cmd);
   add_option_checks(cmd, [opt, cmd] {
     check_map_options(opt->pipeline, MappingChoices{opt->features, opt->feature_size, opt->sim_feature_precision,
                                                     opt->precision, opt->distortion, opt->max_memory_gb});
@@ -343,6 +368,7 @@ void add(CLI::App& root) {
   io->input("--poses", opt->poses);
   io->input("--model", opt->model);
   io->input("--colour-basis", opt->colour_basis.file);
+  io->input("--extrinsics", opt->recording.extrinsics);
   io->output("-o", opt->output, {}, /*lock=*/true);  // written while mapping: one run at a time
   cmd->callback([opt, cmd, io] {
     io->check();

@@ -1,9 +1,10 @@
-// `slamvdb odometry`: LiDAR odometry (KISS-ICP-style) over a dataset folder or a folder of scan
-// files, optionally with loop closure (ScanContext + ICP verification + pose graph); writes the
+// `slamvdb odometry`: LiDAR odometry (KISS-ICP-style) over a dataset folder, a folder of scan
+// files or a robot recording, optionally with loop closure (ScanContext + ICP verification + pose graph); writes the
 // poses T_world_sensor (world = the first scan's sensor frame) in KITTI or TUM format.
 #include <fmt/format.h>
 #include <tbb/global_control.h>
 
+#include <chrono>
 #include <filesystem>
 #include <map>
 #include <memory>
@@ -11,13 +12,13 @@
 #include <optional>
 
 #include "command_registry.hpp"
+#include "input_options.hpp"
 #include "io_options.hpp"
 #include "option_checks.hpp"
 #include "progress.hpp"
 #include "slamvdb/core/error.hpp"
 #include "slamvdb/core/output_file.hpp"
 #include "slamvdb/core/text_escape.hpp"
-#include "slamvdb/io/scan_source.hpp"
 #include "slamvdb/io/trajectory_io.hpp"
 #include "slamvdb/localization/loop_closure.hpp"
 #include "slamvdb/localization/odometry.hpp"
@@ -37,34 +38,44 @@ struct Options {
   double keyframe_distance = 2.0;
   int max_consecutive_failures = 10;
   int threads = 0;
+  RecordingOptions recording;
 };
 
 void run(const Options& opt) {
   std::optional<tbb::global_control> threads;
   if (opt.threads > 0) threads.emplace(tbb::global_control::max_allowed_parallelism, opt.threads);
-  const ScanSource source = open_scan_source(opt.input, opt.rate_hz);
-  for (const auto& note : source.notes) fmt::print(stderr, "note: {}\n", note);
+  InputOptions input_options = opt.recording.input_options();
+  input_options.scans_only = true;
+  input_options.rate_hz = opt.rate_hz;
+  const auto input = open_input(opt.input, input_options);
+  for (const auto& note : input->sequence().notes) fmt::print(stderr, "note: {}\n", escape_control(note));
   TrackingOptions tracking;
   tracking.odometry = opt.odometry;
   tracking.loop_closure = opt.loop_closure;
   tracking.loops.keyframe_distance = opt.keyframe_distance;
   tracking.max_consecutive_failures = opt.max_consecutive_failures;
   LidarTracker tracker(tracking);
-  ProgressBar bar("odometry", source.scans.size(), "scans");
-  for (std::size_t i = 0; i < source.scans.size(); ++i) {
-    const ScanFile& file = source.scans[i];
-    const ScanPoints scan = load_scan_points(file);
+  ProgressBar bar("odometry", input->scan_count(), "scans");
+  const auto stream = input->open(false);
+  const auto started = std::chrono::steady_clock::now();
+  SensorFrame scan;
+  for (std::size_t i = 0; stream->next(scan);) {
+    if (scan.kind != SensorFrame::Kind::kScan) continue;
+    if (!scan.error.empty()) throw Error(scan.error);  // as before: an unreadable scan file stops the run
     const std::size_t problems = tracker.result().problems.size();
     try {
-      tracker.track(file.stamp, scan.points, scan.time.empty() ? nullptr : &scan.time, file.path.string());
+      tracker.track(scan.stamp, scan.points, scan.point_times.empty() ? nullptr : &scan.point_times, scan.name);
     } catch (const Error& e) {
       throw Error(fmt::format("{}; poses not written", e.what()));
     }
     const TrackingResult& r = tracker.result();
     if (r.problems.size() > problems) fmt::print(stderr, "\n{}\n", escape_control(r.problems.back()));
-    bar.update(i + 1, fmt::format("{:.0f} m, {:.1f} Hz{}", r.distance, (i + 1) / std::max(r.busy_seconds, 1e-9),
-                                  r.loop_closer ? fmt::format(", {} loops", r.loop_closer->loops().size()) : ""));
+    const std::string rate = read_rate(stream->progress(), started);
+    bar.update(++i, fmt::format("{:.0f} m, {:.1f} Hz{}{}", r.distance, i / std::max(r.busy_seconds, 1e-9),
+                                r.loop_closer ? fmt::format(", {} loops", r.loop_closer->loops().size()) : "",
+                                rate.empty() ? "" : ", " + rate));
   }
+  for (const auto& line : stream->skipped()) fmt::print(stderr, "input: {}\n", escape_control(line));
   bar.finish();
   tracker.require_registered(opt.input);  // poses that are all guesses are not written
   const TrackingResult r = tracker.take_result();
@@ -72,7 +83,7 @@ void run(const Options& opt) {
   for (std::size_t i = 0; i < r.stamps.size(); ++i) poses.push_back(r.corrected(i));
   write_trajectory(opt.output, r.stamps, poses, opt.format);
 
-  fmt::print("odometry of {} ({}): {} scans, {:.1f} m, {:.1f} scans/s\n", opt.input, source.kind, poses.size(),
+  fmt::print("odometry of {} ({}): {} scans, {:.1f} m, {:.1f} scans/s\n", opt.input, input->kind(), poses.size(),
              r.distance, poses.size() / std::max(r.busy_seconds, 1e-9));
   fmt::print("  registered   {} ({} after a wide retry)\n", r.registered(), r.recovered);
   for (const auto& [reason, n] : r.failures) fmt::print("  not registered ({}): {} (prediction used)\n", reason, n);
@@ -105,10 +116,12 @@ void add(CLI::App& root) {
   auto opt = std::make_shared<Options>();
   auto* cmd = root.add_subcommand(
       "odometry",
-      "LiDAR odometry (KISS-ICP-style scan-to-local-map ICP) over a dataset folder (RELLIS-3D or KITTI layout) or a "
-      "folder of scan files (KITTI .bin or .pcd, in name order; stamps from times.txt there, else index / --rate), "
+      "LiDAR odometry (KISS-ICP-style scan-to-local-map ICP) over a dataset folder (RELLIS-3D or KITTI layout), a "
+      "recording (ROS 1 bag, ROS 2 bag, MCAP) or a folder of scan files (KITTI .bin or .pcd, in name order; stamps from times.txt there, else index / --rate), "
       "optionally with loop closure; writes T_world_sensor per scan (world = the first scan's sensor frame).");
-  cmd->add_option("input", opt->input, "Dataset folder or folder of .bin / .pcd scans")->required()->check(CLI::ExistingDirectory);
+  cmd->add_option("input", opt->input, "Dataset folder, folder of .bin / .pcd scans, or a recording (.bag, .mcap, ROS 2 bag)")
+      ->required()
+      ->check(CLI::ExistingPath);
   cmd->add_option("-o,--output", opt->output, "Pose file to write")->required();
   cmd->add_option("--format", opt->format, "Pose file format: kitti (3x4 rows) or tum (stamp tx ty tz qx qy qz qw)")
       ->transform(CLI::CheckedTransformer(std::map<std::string, PoseFormat>{{"kitti", PoseFormat::kKitti},
@@ -130,6 +143,7 @@ void add(CLI::App& root) {
       ->check(integer_range(0, bounds::kMaxCount))->capture_default_str();
   cmd->add_option("--threads", opt->threads, "Worker threads (0: all cores)")->check(integer_range(0, bounds::kMaxThreads));
   // The tracking checks `slam` runs too (the library's own).
+  opt->recording.add_to(cmd);
   add_option_checks(cmd, [opt] { check_as_usage([&] { opt->odometry.validate(); }); });
   auto io = std::make_shared<IoOptions>(cmd);
   io->input("input", opt->input);

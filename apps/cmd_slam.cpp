@@ -5,11 +5,13 @@
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
+#include <chrono>
 #include <filesystem>
 #include <optional>
 
 #include "colour_basis_option.hpp"
 #include "command_registry.hpp"
+#include "input_options.hpp"
 #include "yaml_config.hpp"
 #include "feature_options.hpp"
 #include "map_option_checks.hpp"
@@ -39,6 +41,7 @@ struct Options {
   double max_memory_gb = 0;
   ColourBasisChoice colour_basis;
   std::string fusion_weighting = "paper";
+  RecordingOptions recording;
 };
 
 // Pose errors of the scans that have a ground-truth pose, after SE(3) alignment.
@@ -52,12 +55,27 @@ std::optional<localization::AteResult> ate_against(const Trajectory& truth, cons
 }
 
 void run(Options opt, const std::string& config) {
-  const Sequence seq = read_sequence(opt.dataset);
-  fmt::print("sequence {} ({} layout): {} scans, {} images\n", seq.root.string(), seq.layout, seq.scans.size(),
-             seq.images.size());
-  for (const auto& note : seq.notes) fmt::print("  note: {}\n", escape_control(note));
-  if (seq.scans.size() < 3) throw Error(fmt::format("{}: {} scans; slam needs at least 3", opt.dataset, seq.scans.size()));
-  const auto source = make_feature_source(opt.features, seq);
+  InputOptions input_options = opt.recording.input_options();
+  input_options.need_poses = true;  // the ground truth places the odometry frame and measures the error
+  const auto input = open_input(opt.dataset, input_options);
+  const Sequence& seq = input->sequence();
+  print_input(*input);
+  const std::size_t scans = input->is_recording() ? input->scan_count() : seq.scans.size();
+  if (scans < 3 && !(input->is_recording() && scans == 0))  // a recording without an index: not known
+    throw Error(fmt::format("{}: {} scans; slam needs at least 3", opt.dataset, scans));
+  std::unique_ptr<FeatureSource> source;
+  if (opt.features.features == "none") {
+    fmt::print("--features none: geometry only\n");
+  } else if (input->is_recording() && !input->has_camera()) {
+    fmt::print("no camera in {}: geometry only\n", seq.root.string());
+  } else if (input->is_recording() && opt.features.features == "simulated" && !input->has_labels()) {
+    throw Error(fmt::format("--features simulated reads SIMULATED label images: {} has no label topic (name one with "
+                            "--label-topic, or use --features model)", seq.root.string()));
+  } else if (input->is_recording() && opt.features.features == "precomputed") {
+    throw Error("--features precomputed reads features/<image>.npy beside a dataset folder: not available for a recording");
+  } else {
+    source = make_feature_source(opt.features, seq);
+  }
   if (opt.tracking.simulated_drift_deg_per_100m != 0.0)
     spdlog::warn("odometry drift is SIMULATED: {} degrees of heading per 100 m are added to the odometry",
                  opt.tracking.simulated_drift_deg_per_100m);
@@ -72,14 +90,17 @@ void run(Options opt, const std::string& config) {
   auto writer = MapFileWriter::create(opt.output, opt.pipeline.map, start_info);
   slam_options.pipeline.store = writer.get();
   std::optional<ProgressBar> bar;
-  auto progress = [&](std::size_t done, std::size_t total, const TrackingResult& r) {
+  const auto started = std::chrono::steady_clock::now();
+  auto progress = [&](std::size_t done, std::size_t total, const TrackingResult& r, const StreamProgress& read) {
     if (!bar) bar.emplace("slam", total, "scans");
-    bar->update(done, fmt::format("{:.0f} m{}", r.distance,
-                                  r.loop_closer ? fmt::format(", {} loops", r.loop_closer->loops().size()) : ""));
+    const std::string rate = read_rate(read, started);
+    bar->update(done, fmt::format("{:.0f} m{}{}", r.distance,
+                                  r.loop_closer ? fmt::format(", {} loops", r.loop_closer->loops().size()) : "",
+                                  rate.empty() ? "" : ", " + rate));
   };
   SlamMappingResult run = [&] {
     try {
-      return map_with_own_poses(seq, source.get(), slam_options, progress);
+      return map_with_own_poses(*input, source.get(), slam_options, progress);
     } catch (...) {
       // slam cannot resume a run, so a failed one leaves no partial map file (a device or FIFO
       // gets nothing: the file grew in a temporary).
@@ -139,17 +160,20 @@ void add(CLI::App& root) {
   auto opt = std::make_shared<Options>();
   auto* cmd = root.add_subcommand(
       "slam",
-      "Map a dataset (RELLIS-3D or KITTI layout) without its poses: LiDAR odometry gives the mapper each scan's pose "
+      "Map a dataset (RELLIS-3D or KITTI layout) or a recording (ROS 1 bag, ROS 2 bag, MCAP) without its poses: LiDAR odometry gives the mapper each scan's pose "
       "as it is registered; when loop closure accepts a loop, the submaps are moved to the corrected trajectory while "
       "mapping goes on (and merged where a loop shows two are the same place).");
-  cmd->add_option("dataset", opt->dataset, "Sequence directory")->required()->check(CLI::ExistingDirectory);
+  cmd->add_option("dataset", opt->dataset,
+                  "Sequence directory, or a recording: ROS 1 .bag, .mcap, ROS 2 bag folder or .db3")
+      ->required()
+      ->check(CLI::ExistingPath);
   cmd->add_option("-o,--output", opt->output, "Map file to write (.svdb)")->required();
   cmd->add_option("--poses-out", opt->poses_out, "Also write the corrected poses (T_world_lidar per scan)");
   cmd->add_option("--format", opt->format, "Format of --poses-out: kitti or tum")
       ->transform(CLI::CheckedTransformer(std::map<std::string, PoseFormat>{{"kitti", PoseFormat::kKitti},
                                                                              {"tum", PoseFormat::kTum}}))
       ->default_str("kitti");
-  add_feature_options(cmd, opt->features, false, false);
+  add_feature_options(cmd, opt->features, false, false, /*with_none=*/true);
   cmd->add_flag("--no-loop-closure", [opt](std::int64_t n) { opt->tracking.loop_closure = n <= 0; },
                 "Odometry only (no submap moves or merges)");
   cmd->add_option("--sim-odometry-drift", opt->tracking.simulated_drift_deg_per_100m,
@@ -179,6 +203,7 @@ void add(CLI::App& root) {
   add_fusion_weighting_option(cmd, opt->fusion_weighting);
   add_max_memory_option(cmd, opt->max_memory_gb);
   add_colour_basis_option(cmd, opt->colour_basis);
+  opt->recording.add_to(cmd);
   add_option_checks(cmd, [opt] {
     check_feature_options(opt->features);
     opt->pipeline.map.semantic.dim = opt->features.dim;
@@ -197,6 +222,7 @@ void add(CLI::App& root) {
   auto io = std::make_shared<IoOptions>(cmd);
   io->input("dataset", opt->dataset);
   io->input("--colour-basis", opt->colour_basis.file);
+  io->input("--extrinsics", opt->recording.extrinsics);
   add_feature_inputs(*io, opt->features);
   io->output("-o", opt->output, {}, /*lock=*/true);  // one run at a time
   io->output("--poses-out", opt->poses_out);

@@ -56,12 +56,18 @@ struct FeatureOptions {
 };
 
 // with_image_selection: --images / --max-images (commands that go through select_labelled_images).
-inline void add_feature_options(CLI::App* cmd, FeatureOptions& o, bool with_text_model, bool with_image_selection = true) {
+// with_none: mapping commands also take 'none' (geometry only).
+inline void add_feature_options(CLI::App* cmd, FeatureOptions& o, bool with_text_model, bool with_image_selection = true,
+                                bool with_none = false) {
+  std::vector<std::string> choices{"simulated", "model", "precomputed"};
+  if (with_none) choices.push_back("none");
   cmd->add_option("--features", o.features,
-                  "Where image features come from: 'simulated' (SIMULATED from the 2D label images, no network), "
-                  "'model' (a TorchScript dense encoder, --model), 'precomputed' (features/<image>.npy)")
+                  std::string("Where image features come from: 'simulated' (SIMULATED from the 2D label images, no "
+                              "network), 'model' (a TorchScript dense encoder, --model), 'precomputed' "
+                              "(features/<image>.npy)") +
+                      (with_none ? ", 'none' (geometry only)" : ""))
       ->capture_default_str()
-      ->check(CLI::IsMember({"simulated", "model", "precomputed"}));
+      ->check(CLI::IsMember(choices));
   cmd->add_option("--model", o.model, "TorchScript dense image encoder (MODEL.pt with MODEL.json beside it)")
       ->check(CLI::ExistingFile);
   if (with_text_model)

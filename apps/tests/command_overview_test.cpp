@@ -23,7 +23,7 @@ TEST(CliConventions, TopLevelHelpListsTheWorkflowOneLineEach) {
       "map", "slam",             // map
       "odometry",                // localize
       "query", "classify", "train-queries", "import-queries",  // ask
-      "info", "export",          // look
+      "inspect", "info", "export",  // look
       "eval", "eval-images", "eval-trajectory",  // evaluate
       "tokenize", "embed-text", "segment"};      // tools
 #if !SLAMVDB_WITH_TRAINING  // the demo trains query vectors: builds without Torch have no demo

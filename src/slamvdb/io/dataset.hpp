@@ -2,6 +2,7 @@
 // A recorded (or synthetic) sequence as the mapping pipeline consumes it, whatever its layout.
 #include <cstdint>
 #include <filesystem>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -23,6 +24,15 @@ struct ScanRecord {
   std::filesystem::path labels;  // uint32 per point, low 16 bits class; may be empty
 };
 
+// An image carried in memory (from a recording) instead of a file: encoded PNG / JPEG bytes
+// (channels 0), decoded where the record is loaded (the inference thread), or raw pixels in rows
+// of width x channels bytes (RGB for a camera, class ids for labels).
+struct ImageBytes {
+  std::vector<std::uint8_t> data;
+  int width = 0, height = 0, channels = 0;
+  std::string name;  // for messages: "TOPIC message N"
+};
+
 struct ImageRecord {
   double stamp = 0.0;
   std::filesystem::path rgb;       // may be empty
@@ -32,6 +42,10 @@ struct ImageRecord {
   // The size the rgb and label images must have (the camera's, which the calibration refers to);
   // set by the sequence readers, checked from the file header before decoding. 0: not checked.
   int width = 0, height = 0;
+  // In place of rgb / labels: the image in memory (recordings). Shared: records are copied into queues.
+  std::shared_ptr<const ImageBytes> rgb_data{}, label_data{};
+  bool has_rgb() const { return !rgb.empty() || rgb_data; }
+  bool has_labels() const { return !labels.empty() || label_data; }
 };
 
 struct Sequence {

@@ -79,32 +79,65 @@ std::int64_t pixels(cv::Size s) { return static_cast<std::int64_t>(s.width) * s.
 
 std::string megapixels(cv::Size s) { return fmt::format("{:.1f} megapixels", static_cast<double>(pixels(s)) / 1e6); }
 
-// Reads, checks the header size against `expected` (or `max_pixels` without one) and decodes.
-cv::Mat read_checked_image(const std::filesystem::path& path, int flags, const char* what, cv::Size expected,
-                           std::int64_t max_pixels) {
+// Checks the header size of encoded `bytes` (named `name`) against `expected` (or `max_pixels`
+// without one) and decodes.
+cv::Mat decode_checked_image(std::string_view bytes, const std::string& name, int flags, const char* what,
+                             cv::Size expected, std::int64_t max_pixels) {
   const std::string kind = fmt::format("{} image", what);
-  const std::string bytes = read_regular_file(path, kind, kMaxImageFileBytes);
   const auto size = parse_image_header(bytes);
-  if (!size) throw Error(fmt::format("{} {} is neither a PNG nor a JPEG file, or its header is damaged", kind, path));
+  if (!size) throw Error(fmt::format("{} {} is neither a PNG nor a JPEG file, or its header is damaged", kind, name));
   if (expected.area() > 0 && *size != expected)
     throw Error(fmt::format("{} {} is {} x {} pixels but the sequence's images are {} x {} (the camera calibration "
                             "refers to that size); it is not resized",
-                            kind, path, size->width, size->height, expected.width, expected.height));
+                            kind, name, size->width, size->height, expected.width, expected.height));
   if (expected.area() <= 0 && pixels(*size) > max_pixels)
-    throw Error(fmt::format("{} {} is {} x {} = {}, more than the limit of {} (refused before decoding)", kind, path,
+    throw Error(fmt::format("{} {} is {} x {} = {}, more than the limit of {} (refused before decoding)", kind, name,
                             size->width, size->height, megapixels(*size), static_cast<double>(max_pixels) / 1e6));
   cv::Mat image;
   try {
     image = cv::imdecode(cv::Mat(1, static_cast<int>(bytes.size()), CV_8UC1, const_cast<char*>(bytes.data())),
                          flags | kNoExifRotation);
   } catch (const cv::Exception& e) {
-    throw Error(fmt::format("cannot decode {} {}: {}", kind, path, e.what()));
+    throw Error(fmt::format("cannot decode {} {}: {}", kind, name, e.what()));
   }
-  if (image.empty()) throw Error(fmt::format("cannot decode {} {}: the file is damaged", kind, path));
+  if (image.empty()) throw Error(fmt::format("cannot decode {} {}: the file is damaged", kind, name));
   if (image.size() != *size)
     throw Error(fmt::format("{} {} decoded to {} x {} pixels but its header says {} x {}: the file is damaged", kind,
-                            path, image.cols, image.rows, size->width, size->height));
+                            name, image.cols, image.rows, size->width, size->height));
   return image;
+}
+
+// Reads, checks the header size against `expected` (or `max_pixels` without one) and decodes.
+cv::Mat read_checked_image(const std::filesystem::path& path, int flags, const char* what, cv::Size expected,
+                           std::int64_t max_pixels) {
+  const std::string bytes = read_regular_file(path, fmt::format("{} image", what), kMaxImageFileBytes);
+  return decode_checked_image(bytes, fmt::format("{}", path), flags, what, expected, max_pixels);
+}
+
+// An image in memory: encoded bytes decoded as a file's, raw pixels checked against `expected`
+// and copied (the record keeps its bytes). Colour comes out in `flags`' order (BGR for IMREAD_COLOR).
+cv::Mat memory_image(const ImageBytes& image, int flags, const char* what, cv::Size expected, std::int64_t max_pixels) {
+  if (image.channels == 0)
+    return decode_checked_image(std::string_view(reinterpret_cast<const char*>(image.data.data()), image.data.size()),
+                                image.name, flags, what, expected, max_pixels);
+  const cv::Size size(image.width, image.height);
+  if (expected.area() > 0 && size != expected)
+    throw Error(fmt::format("{} image {} is {} x {} pixels but the camera's images are {} x {} (the camera calibration "
+                            "refers to that size); it is not resized",
+                            what, image.name, size.width, size.height, expected.width, expected.height));
+  if (image.channels != 1 && image.channels != 3)
+    throw Error(fmt::format("{} image {} has {} channels: expected 1 or 3", what, image.name, image.channels));
+  if (image.data.size() != static_cast<std::size_t>(pixels(size)) * static_cast<std::size_t>(image.channels))
+    throw Error(fmt::format("{} image {} holds {} bytes, not {} x {} x {}", what, image.name, image.data.size(),
+                            size.width, size.height, image.channels));
+  const cv::Mat view(size, image.channels == 1 ? CV_8UC1 : CV_8UC3, const_cast<std::uint8_t*>(image.data.data()));
+  cv::Mat out;
+  if (image.channels == 3 && (flags & cv::IMREAD_COLOR) == cv::IMREAD_COLOR) {
+    cv::cvtColor(view, out, cv::COLOR_RGB2BGR);  // as imdecode gives colour
+  } else {
+    out = view.clone();
+  }
+  return out;
 }
 
 }  // namespace
@@ -136,12 +169,23 @@ ImageFrame load_image_frame(const ImageRecord& record, bool want_rgb, bool want_
   ImageFrame frame;
   frame.stamp = record.stamp;
   const cv::Size expected(record.width, record.height);
-  if (want_rgb && !record.rgb.empty()) {
+  if (want_rgb && record.rgb_data) {
+    cv::cvtColor(memory_image(*record.rgb_data, cv::IMREAD_COLOR, "camera", expected, max_pixels), frame.rgb,
+                 cv::COLOR_BGR2RGB);
+    frame.source = record.rgb_data->name;
+  } else if (want_rgb && !record.rgb.empty()) {
     cv::cvtColor(read_checked_image(record.rgb, cv::IMREAD_COLOR, "camera", expected, max_pixels), frame.rgb,
                  cv::COLOR_BGR2RGB);
     frame.source = record.rgb.filename().string();
   }
-  if (want_labels && !record.labels.empty()) {
+  if (want_labels && record.label_data) {
+    frame.labels = memory_image(*record.label_data, cv::IMREAD_UNCHANGED, "label", expected, max_pixels);
+    if (frame.labels.type() != CV_8UC1)
+      throw Error(fmt::format("label image {} must be 8-bit single-channel class ids, found {} channel(s) of {} bits",
+                              record.label_data->name, frame.labels.channels(), 8 * frame.labels.elemSize1()));
+    if (frame.source.empty()) frame.source = record.label_data->name;
+  }
+  if (want_labels && !record.label_data && !record.labels.empty()) {
     frame.labels = read_checked_image(record.labels, cv::IMREAD_UNCHANGED, "label", expected, max_pixels);
     if (frame.labels.type() != CV_8UC1)
       throw Error(fmt::format("label image {} must be 8-bit single-channel class ids, found {} channel(s) of {} bits",

@@ -14,7 +14,7 @@ FeatureMap EncoderFeatureSource::features_for(const ImageRecord& record) {
 
 void EncoderFeatureSource::features_into(const ImageRecord& record, FeatureMap& out) {
   const bool rgb = input_ == Input::kRgb;
-  if ((rgb ? record.rgb : record.labels).empty())
+  if (!(rgb ? record.has_rgb() : record.has_labels()))
     throw Error("image at stamp " + std::to_string(record.stamp) + " has no " + (rgb ? "RGB file" : "label image"));
   encoder_->encode_into(load_image_frame(record, rgb, !rgb), out);
 }

@@ -6,7 +6,6 @@
 #include <thread>
 
 #include "slamvdb/core/error.hpp"
-#include "slamvdb/io/scan_io.hpp"
 
 namespace slamvdb {
 
@@ -40,29 +39,33 @@ SemanticMap build_map(const Sequence& seq, FeatureSource* features, const Pipeli
 
 SemanticMap continue_map(SemanticMap start, const Sequence& seq, FeatureSource* features,
                          const PipelineOptions& options, PipelineReport& report, const ProgressFn& progress) {
+  return continue_map(std::move(start), *sequence_input(seq), features, options, report,
+                      [&](std::size_t done, std::size_t total, const StreamProgress&) {
+                        if (progress) progress(done, options.max_scans ? std::min(options.max_scans, total) : total);
+                      });
+}
+
+SemanticMap continue_map(SemanticMap start, const SensorInput& input, FeatureSource* features,
+                         const PipelineOptions& options, PipelineReport& report, const StreamProgressFn& progress) {
   const auto t_start = Clock::now();
+  const Sequence& seq = input.sequence();
   const Trajectory& poses = options.poses ? *options.poses : seq.poses;
   if (poses.empty())
-    throw Error(fmt::format("sequence {} has no poses (poses.txt) and no other pose source was given; mapping needs "
-                            "a pose for every scan", seq.root.string()));
-  const std::size_t num_scans =
-      options.max_scans ? std::min(options.max_scans, seq.scans.size()) : seq.scans.size();
-  // With --max-scans, the images after the last mapped scan are not part of the run.
-  std::size_t num_images = features ? seq.images.size() : 0;
-  if (options.max_scans) {
-    const double last_stamp = num_scans ? seq.scans[num_scans - 1].stamp : -1e300;
-    num_images = 0;
-    while (features && num_images < seq.images.size() && seq.images[num_images].stamp <= last_stamp) ++num_images;
-  }
+    throw Error(fmt::format("{} has no poses ({}) and no other pose source was given; mapping needs a pose for every "
+                            "scan",
+                            seq.root.string(), input.is_recording() ? "no pose topic" : "poses.txt"));
+  const std::size_t total_scans =
+      options.max_scans && input.scan_count() ? std::min(options.max_scans, input.scan_count()) : input.scan_count();
+  const auto stream = input.open(features != nullptr);
 
   Mapper mapper(mapper_options(seq, options), std::move(start), features, options.store);
-  // The three streams in time order; at equal stamps a pose first (it covers the data of its
-  // time), then the scan, then the image. The whole trajectory is known, so before each scan or
-  // image every pose up to the first one at or after its stamp is given (earlier than its own
-  // time if need be): the mapper never waits for a pose this thread holds back, which with a full
-  // queue would wait for ever (a trajectory starting after the data, or with a gap longer than the
+  // The streams in time order; at equal stamps a pose first (it covers the data of its time),
+  // then the scan, then the image. The whole trajectory is known, so before each scan or image
+  // every pose up to the first one at or after its stamp is given (earlier than its own time if
+  // need be): the mapper never waits for a pose this thread holds back, which with a full queue
+  // would wait for ever (a trajectory starting after the data, or with a gap longer than the
   // queue). The end of the poses is announced with the last one.
-  std::size_t pi = 0, si = 0, ii = 0;
+  std::size_t pi = 0, scans = 0;
   const auto give_pose = [&] {
     mapper.add_pose(poses.stamps()[pi], poses.poses()[pi]);
     if (++pi == poses.size()) mapper.end_poses();  // what comes after the last pose needs no wait
@@ -70,38 +73,47 @@ SemanticMap continue_map(SemanticMap start, const Sequence& seq, FeatureSource* 
   const auto give_poses_covering = [&](double stamp) {
     while (pi < poses.size() && (pi == 0 || poses.stamps()[pi - 1] < stamp)) give_pose();
   };
-  const double t0 = std::min(num_scans ? seq.scans[0].stamp : 1e300, num_images ? seq.images[0].stamp : 1e300);
-  double last_frame = t0;
-  while (si < num_scans || ii < num_images) {
-    const double tp = pi < poses.size() ? poses.stamps()[pi] : 1e300;
-    const double ts = si < num_scans ? seq.scans[si].stamp : 1e300;
-    const double ti = ii < num_images ? seq.images[ii].stamp : 1e300;
-    const double t = std::min({tp, ts, ti});
-    if (options.realtime) {
-      std::this_thread::sleep_until(t_start + std::chrono::duration_cast<Clock::duration>(
-                                                  std::chrono::duration<double>(t - t0)));
-      last_frame = t;
-    }
-    if (tp == t) {
+  SensorFrame frame;
+  bool have = stream->next(frame);
+  const double t0 = have ? frame.stamp : 0.0;
+  double last_frame = t0, last_scan = -1e300;
+  const auto wait_for = [&](double t) {
+    if (!options.realtime) return;
+    std::this_thread::sleep_until(t_start +
+                                  std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(t - t0)));
+    last_frame = t;
+  };
+  while (have) {
+    // With --max-scans, the frames after the last mapped scan (images up to its stamp) are not part of the run.
+    if (options.max_scans && scans == options.max_scans &&
+        (frame.kind == SensorFrame::Kind::kScan || frame.stamp > last_scan))
+      break;
+    if (pi < poses.size() && poses.stamps()[pi] <= frame.stamp) {
+      wait_for(poses.stamps()[pi]);
       give_pose();
-    } else if (ts == t) {
-      const ScanRecord& rec = seq.scans[si++];
-      give_poses_covering(rec.stamp);
-      try {
-        mapper.add_scan(rec.stamp, read_scan(rec).points);
-      } catch (const Error& e) {
-        mapper.add_unreadable_scan(fmt::format("scan {}: {}", rec.points.filename().string(), e.what()));
+      continue;
+    }
+    wait_for(frame.stamp);
+    give_poses_covering(frame.stamp);
+    if (frame.kind == SensorFrame::Kind::kScan) {
+      if (frame.error.empty()) {
+        mapper.add_scan(frame.stamp, std::move(frame.points));
+      } else {
+        mapper.add_unreadable_scan(frame.error);
       }
-      if (progress) progress(si, num_scans);
+      last_scan = frame.stamp;
+      ++scans;
+      if (progress) progress(scans, total_scans, stream->progress());
     } else {
-      give_poses_covering(ti);
-      mapper.add_image(seq.images[ii++]);
+      mapper.add_image(std::move(frame.image));
     }
     if (mapper.failed()) break;  // finish() names the error
+    have = stream->next(frame);
   }
   while (pi < poses.size()) give_pose();  // no data left to wait for them (--realtime ends with the data)
   SemanticMap map = mapper.finish();
   report = mapper.report();
+  report.input_skipped = stream->skipped();
   report.seconds_total = std::chrono::duration<double>(Clock::now() - t_start).count();
   if (options.realtime) report.realtime_seconds_behind = std::max(0.0, report.seconds_total - (last_frame - t0));
   return map;

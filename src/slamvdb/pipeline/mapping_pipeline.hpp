@@ -9,6 +9,7 @@
 
 #include "slamvdb/io/dataset.hpp"
 #include "slamvdb/pipeline/mapper.hpp"
+#include "slamvdb/sensors/sensor_input.hpp"
 
 namespace slamvdb {
 
@@ -36,6 +37,9 @@ MapInfo map_info_for(const Sequence& sequence, const FeatureSource* features, co
 MapperOptions mapper_options(const Sequence& sequence, const PipelineOptions& options);
 
 using ProgressFn = std::function<void(std::size_t done, std::size_t total)>;
+// After every scan: scans done, scans in the input (0: not known before reading), and how far the
+// stream has read (a recording's bytes and messages).
+using StreamProgressFn = std::function<void(std::size_t done, std::size_t total, const StreamProgress& read)>;
 
 // features may be null: geometry only. Throws Error on a configuration problem that would make
 // every frame fail (e.g. features of the wrong dimension); single unreadable files are skipped
@@ -46,5 +50,8 @@ SemanticMap build_map(const Sequence& sequence, FeatureSource* features, const P
 // last submap is skipped, the rest mapped as build_map would.
 SemanticMap continue_map(SemanticMap start, const Sequence& sequence, FeatureSource* features,
                          const PipelineOptions& options, PipelineReport& report, const ProgressFn& progress = {});
+// The same on any input (a dataset folder or a recording), streamed: the mapping commands' path.
+SemanticMap continue_map(SemanticMap start, const SensorInput& input, FeatureSource* features,
+                         const PipelineOptions& options, PipelineReport& report, const StreamProgressFn& progress = {});
 
 }  // namespace slamvdb

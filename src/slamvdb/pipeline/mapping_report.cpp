@@ -49,6 +49,7 @@ std::string PipelineReport::summary() const {
   if (realtime_seconds_behind >= 0)
     s += fmt::format("\nreal time: kept up with {} of {} scans and {} of {} images; done {:.2f} s after the last frame",
                      scans_integrated, scans_total, images_fused, images_total, realtime_seconds_behind);
+  for (const std::string& line : input_skipped) s += "\ninput: " + line;
   for (std::size_t i = 0; i < problems.size() && i < 20; ++i) s += "\n  skipped: " + problems[i];
   if (problems.size() + problems_not_listed > 20)
     s += fmt::format("\n  ... and {} more", problems.size() + problems_not_listed - 20);

@@ -49,6 +49,9 @@ struct PipelineReport {
   static constexpr std::size_t kMaxProblems = 1000;
   std::vector<std::string> problems;
   std::size_t problems_not_listed = 0;
+  // What the input skipped and counted (a recording's messages of unknown types, or that do not
+  // decode with --skip-bad-messages), one line each.
+  std::vector<std::string> input_skipped;
 
   void add_problem(std::string line);
   std::size_t sensor_items_dropped() const;

@@ -3,14 +3,18 @@
 #include <fmt/format.h>
 
 #include "slamvdb/core/error.hpp"
-#include "slamvdb/io/scan_source.hpp"
 
 namespace slamvdb {
 
-Trajectory DatasetPoses::trajectory(const Sequence& sequence) const {
+Trajectory DatasetPoses::trajectory(const SensorInput& input) const {
+  const Sequence& sequence = input.sequence();
   if (sequence.poses.empty())
-    throw Error(fmt::format("sequence {} has no ground-truth poses (poses.txt); give a pose file with --poses",
-                            sequence.root.string()));
+    throw Error(input.is_recording()
+                    ? fmt::format("recording {} has no pose topic chosen (--pose-topic), so no poses; give one, a pose "
+                                  "file with --poses, or --odometry",
+                                  sequence.root.string())
+                    : fmt::format("sequence {} has no ground-truth poses (poses.txt); give a pose file with --poses",
+                                  sequence.root.string()));
   return sequence.poses;
 }
 
@@ -19,8 +23,12 @@ std::string PoseFile::describe() const {
   return fmt::format("{}pose file {}", kind, file_.string());
 }
 
-Trajectory PoseFile::trajectory(const Sequence& sequence) const {
+Trajectory PoseFile::trajectory(const SensorInput& input) const {
+  const Sequence& sequence = input.sequence();
   StampedPoses poses = read_trajectory(file_, format_);
+  if (poses.format == PoseFormat::kKitti && input.is_recording())
+    throw Error(fmt::format("{} is a KITTI pose file (no stamps, row i = scan i): with a recording give a TUM file "
+                            "(stamp tx ty tz qx qy qz qw) or --pose-topic", file_.string()));
   if (poses.format == PoseFormat::kKitti) {
     if (poses.poses.size() > sequence.scans.size())
       throw Error(fmt::format("{} has {} poses but the sequence has only {} scans; a KITTI pose file pairs row i with "
@@ -44,19 +52,20 @@ std::string OdometryPoses::describe() const {
                      summary_.empty() ? "" : " (" + summary_ + ")");
 }
 
-Trajectory OdometryPoses::trajectory(const Sequence& sequence) const {
+Trajectory OdometryPoses::trajectory(const SensorInput& input) const {
+  const Sequence& sequence = input.sequence();
   LidarTracker tracker(options_);
-  std::size_t unreadable = 0;
-  for (std::size_t i = 0; i < sequence.scans.size(); ++i) {
-    const ScanRecord& rec = sequence.scans[i];
-    std::optional<ScanPoints> scan;
-    try {
-      scan = load_scan_points({rec.stamp, rec.points});
-    } catch (const Error&) {
+  std::size_t unreadable = 0, done = 0;
+  const auto stream = input.open(false);
+  SensorFrame frame;
+  while (stream->next(frame)) {
+    if (frame.kind != SensorFrame::Kind::kScan) continue;
+    if (frame.error.empty()) {
+      tracker.track(frame.stamp, frame.points, frame.point_times.empty() ? nullptr : &frame.point_times, frame.name);
+    } else {
       ++unreadable;  // no pose for it; the mapper reports the file when it reads it
     }
-    if (scan) tracker.track(rec.stamp, scan->points, scan->time.empty() ? nullptr : &scan->time, rec.points.string());
-    if (progress_) progress_(i + 1, sequence.scans.size(), tracker.result());
+    if (progress_) progress_(++done, input.scan_count(), tracker.result());
   }
   const TrackingResult& r = tracker.result();
   if (r.stamps.empty()) throw Error(fmt::format("{}: no scan could be read for odometry", sequence.root.string()));

@@ -11,6 +11,7 @@
 #include "slamvdb/io/dataset.hpp"
 #include "slamvdb/io/trajectory_io.hpp"
 #include "slamvdb/pipeline/lidar_tracking.hpp"
+#include "slamvdb/sensors/sensor_input.hpp"
 
 namespace slamvdb {
 
@@ -18,14 +19,16 @@ class PoseSource {
  public:
   virtual ~PoseSource() = default;
   virtual std::string describe() const = 0;
-  // The poses for the scans of `sequence`. Throws Error naming the source when it has none that fit.
-  virtual Trajectory trajectory(const Sequence& sequence) const = 0;
+  // The poses for the scans of `input`. Throws Error naming the source when it has none that fit.
+  virtual Trajectory trajectory(const SensorInput& input) const = 0;
+  Trajectory trajectory(const Sequence& sequence) const { return trajectory(*sequence_input(sequence)); }
 };
 
 class DatasetPoses final : public PoseSource {
  public:
-  std::string describe() const override { return "the sequence's ground truth (poses.txt)"; }
-  Trajectory trajectory(const Sequence& sequence) const override;
+  std::string describe() const override { return "the input's ground truth (poses.txt, or a recording's pose topic)"; }
+  using PoseSource::trajectory;
+  Trajectory trajectory(const SensorInput& input) const override;
 };
 
 class PoseFile final : public PoseSource {
@@ -36,7 +39,9 @@ class PoseFile final : public PoseSource {
   std::string describe() const override;
   // KITTI rows carry no stamps: row i is the pose of scan i (a file with fewer rows leaves the
   // last scans without a pose, counted as such; more rows than scans is an Error).
-  Trajectory trajectory(const Sequence& sequence) const override;
+  // A recording's scans are not listed before reading: KITTI files need a dataset folder.
+  using PoseSource::trajectory;
+  Trajectory trajectory(const SensorInput& input) const override;
 
  private:
   std::filesystem::path file_;
@@ -57,7 +62,8 @@ class OdometryPoses final : public PoseSource {
       : options_(std::move(options)), progress_(std::move(progress)) {}
   // After trajectory(): also how the tracking went.
   std::string describe() const override;
-  Trajectory trajectory(const Sequence& sequence) const override;
+  using PoseSource::trajectory;
+  Trajectory trajectory(const SensorInput& input) const override;
   const std::vector<std::string>& problems() const { return problems_; }  // one line per scan not registered
 
  private:

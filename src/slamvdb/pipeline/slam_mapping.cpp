@@ -4,6 +4,8 @@
 
 #include <chrono>
 #include <cmath>
+#include <deque>
+#include <optional>
 #include <limits>
 
 #include "slamvdb/core/error.hpp"
@@ -26,16 +28,25 @@ std::vector<Pose> SlamMappingResult::corrected_poses() const {
 
 SlamMappingResult map_with_own_poses(const Sequence& seq, FeatureSource* features, const SlamMappingOptions& options,
                                      const SlamProgress& progress) {
-  const auto t_start = std::chrono::steady_clock::now();
-  LidarTracker tracker(options.tracking);
-  const std::size_t num_scans = options.pipeline.max_scans ? std::min(options.pipeline.max_scans, seq.scans.size())
-                                                           : seq.scans.size();
-  const double last_scan_stamp = num_scans ? seq.scans[num_scans - 1].stamp : -1e300;
-  std::size_t num_images = 0;
-  while (features && num_images < seq.images.size() && seq.images[num_images].stamp <= last_scan_stamp) ++num_images;
+  return map_with_own_poses(*sequence_input(seq), features, options,
+                            [&](std::size_t done, std::size_t total, const TrackingResult& r, const StreamProgress&) {
+                              if (progress) progress(done, total, r);
+                            });
+}
 
-  const Pose G = num_scans ? odometry_start_pose(seq, seq.scans[0].stamp) : Pose::Identity();  // T_world_odom
-  const Pose G_inv = G.inverse();
+SlamMappingResult map_with_own_poses(const SensorInput& input, FeatureSource* features, const SlamMappingOptions& options,
+                                     const SlamStreamProgress& progress) {
+  const auto t_start = std::chrono::steady_clock::now();
+  const Sequence& seq = input.sequence();
+  LidarTracker tracker(options.tracking);
+  const std::size_t max_scans = options.pipeline.max_scans;
+  const std::size_t num_scans = max_scans && input.scan_count() ? std::min(max_scans, input.scan_count())
+                                                                 : input.scan_count();
+  const auto stream = input.open(features != nullptr);
+  SensorFrame frame;
+  bool have = stream->next(frame);
+  // T_world_odom (odometry_start_pose at the first scan), set when the first scan comes.
+  Pose G = Pose::Identity(), G_inv = Pose::Identity();
   // The loop closer's correction C (odometry frame) as the map's world sees it: G C G^-1.
   const auto world_correction = [&](double stamp) {
     return G * tracker.result().loop_closer->correction_at(stamp) * G_inv;
@@ -54,21 +65,37 @@ SlamMappingResult map_with_own_poses(const Sequence& seq, FeatureSource* feature
   // Images are given once the pose after them is (the next readable scan's, or the end of the
   // poses): given before it, they would wait in the mapper's queue for a pose only this thread
   // can give, and a run of unreadable scans would fill the queue and stop this thread for good.
-  std::size_t si = 0, ii = 0, unreadable = 0;
+  // They wait here meanwhile (the images between two scans).
+  std::size_t si = 0, unreadable = 0;
+  double last_scan_stamp = -std::numeric_limits<double>::infinity();
+  std::deque<ImageRecord> images;
   const auto give_images_before = [&](double stamp) {
-    while (ii < num_images && seq.images[ii].stamp < stamp) mapper.add_image(seq.images[ii++]);
+    while (!images.empty() && images.front().stamp < stamp) {
+      mapper.add_image(images.front());
+      images.pop_front();
+    }
   };
-  while (si < num_scans) {
-    const ScanRecord& rec = seq.scans[si++];
-    ScanPoints scan;
-    try {
-      scan = load_scan_points({rec.stamp, rec.points});
-    } catch (const Error& e) {
-      mapper.add_unreadable_scan(fmt::format("scan {}: {}", rec.points.filename().string(), e.what()));
-      ++unreadable;
-      if (progress) progress(si, num_scans, tracker.result());
+  for (; have; have = stream->next(frame)) {
+    if (frame.kind == SensorFrame::Kind::kImage) {
+      // With --max-scans, the images up to the last mapped scan's stamp.
+      if (max_scans && si == max_scans && frame.stamp > last_scan_stamp) break;
+      images.push_back(std::move(frame.image));
       continue;
     }
+    if (max_scans && si == max_scans) break;
+    if (si++ == 0) {
+      G = odometry_start_pose(seq, frame.stamp);
+      G_inv = G.inverse();
+    }
+    last_scan_stamp = frame.stamp;
+    if (!frame.error.empty()) {
+      mapper.add_unreadable_scan(frame.error);
+      ++unreadable;
+      if (progress) progress(si, num_scans, tracker.result(), stream->progress());
+      continue;
+    }
+    const ScanRecord rec{frame.stamp, frame.name, {}};
+    ScanPoints scan{std::move(frame.points), std::move(frame.point_times)};
     const Pose T_odom_sensor =
         tracker.track(rec.stamp, scan.points, scan.time.empty() ? nullptr : &scan.time, rec.points.string());
     const auto* closer = tracker.result().loop_closer.get();
@@ -101,12 +128,13 @@ SlamMappingResult map_with_own_poses(const Sequence& seq, FeatureSource* feature
     if (corrections.pending_loops())
       corrections.merge_ready(mapper.submaps(), mapper.map().active_submap_id(),
                               [&](int target, int source) { return mapper.merge_submaps(target, source, options.merge); });
-    if (progress) progress(si, num_scans, tracker.result());
+    if (progress) progress(si, num_scans, tracker.result(), stream->progress());
     if (mapper.failed()) break;  // finish() names the error
   }
   if (!mapper.failed()) tracker.require_registered(seq.root.string(), unreadable);
   mapper.end_poses();
-  if (!mapper.failed()) give_images_before(std::numeric_limits<double>::infinity());  // after the last pose: counted
+  // After the last pose (counted), the images up to the last scan (later ones are not part of the run).
+  if (!mapper.failed()) give_images_before(std::nextafter(last_scan_stamp, std::numeric_limits<double>::infinity()));
   mapper.end_mapping();
   // Loops whose newest submap was still being written: it is finished now (merged through the
   // mapper, which reads submaps back from the store and keeps the store in step).
@@ -115,6 +143,7 @@ SlamMappingResult map_with_own_poses(const Sequence& seq, FeatureSource* feature
   });
   SemanticMap map = mapper.finish();
   PipelineReport report = mapper.report();
+  report.input_skipped = stream->skipped();
   report.seconds_total = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
   return SlamMappingResult{std::move(map), std::move(report), tracker.take_result(), corrections.report(), G};
 }

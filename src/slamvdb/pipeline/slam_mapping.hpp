@@ -34,5 +34,10 @@ struct SlamMappingResult {
 using SlamProgress = std::function<void(std::size_t, std::size_t, const TrackingResult&)>;
 SlamMappingResult map_with_own_poses(const Sequence& sequence, FeatureSource* features,
                                      const SlamMappingOptions& options, const SlamProgress& progress = {});
+// The same on any input (a dataset folder or a recording), streamed; progress also gets how far
+// the stream has read.
+using SlamStreamProgress = std::function<void(std::size_t, std::size_t, const TrackingResult&, const StreamProgress&)>;
+SlamMappingResult map_with_own_poses(const SensorInput& input, FeatureSource* features,
+                                     const SlamMappingOptions& options, const SlamStreamProgress& progress = {});
 
 }  // namespace slamvdb
