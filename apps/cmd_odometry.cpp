@@ -71,7 +71,8 @@ void run(const Options& opt) {
     const TrackingResult& r = tracker.result();
     if (r.problems.size() > problems) fmt::print(stderr, "\n{}\n", escape_control(r.problems.back()));
     const std::string rate = read_rate(stream->progress(), started);
-    bar.update(++i, fmt::format("{:.0f} m, {:.1f} Hz{}{}", r.distance, i / std::max(r.busy_seconds, 1e-9),
+    ++i;
+    bar.update(i, fmt::format("{:.0f} m, {:.1f} Hz{}{}", r.distance, i / std::max(r.busy_seconds, 1e-9),
                                 r.loop_closer ? fmt::format(", {} loops", r.loop_closer->loops().size()) : "",
                                 rate.empty() ? "" : ", " + rate));
   }
