@@ -218,8 +218,8 @@ void run(const Options& opt) {
         "## Map ({}, map.svdb), paper Table 6.1 form, void ignored\n\n{}\n"
         "## Map, {}\n\n{}\n## Single-view voxel baseline\n\n{}\n## Per-image baseline\n\n{}\n"
         "## Accuracy against coverage (map, {})\n\nVoxels ranked by confidence (the margin between "
-        "the best and second-best class, damped for voxels seen in few views and for voxels whose views "
-        "disagreed: voxel_confidence; coverage.png plots both rules):\n\n{}\n"
+        "the best and second-best class, damped for voxels seen in few views: voxel_confidence; "
+        "coverage.png plots both rules):\n\n{}\n"
         "## Calibration (map)\n\n{}\n"
         "The pictures (classes.png, nav.png) hatch the least confident tenth of the voxels as uncertain "
         "(confidence < {:.3f}, unknown to the planner in nav.pgm): they are {:.1f} % accurate, the rest {:.1f} %.\n",

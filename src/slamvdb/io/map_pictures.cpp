@@ -66,7 +66,7 @@ void hatch(BirdsEyeImage& image, const cv::Mat& mask) {
 }
 
 std::string uncertain_legend(float min_confidence) {
-  return fmt::format("uncertain (confidence < {:.2f}): hatched, unknown to the planner", min_confidence);
+  return fmt::format("uncertain (confidence < {:.3g}): hatched, unknown to the planner", min_confidence);
 }
 
 void annotate(BirdsEyeImage& image, const PictureAnnotations& a) {
