@@ -23,6 +23,7 @@ struct Options {
   std::string map, queries, csv, grid, png;
   bool no_void_rule = false, ignore_model_id = false;
   double robot_height = NavGridOptions{}.robot_height;
+  float min_confidence = 0.f;
   std::vector<std::string> costs;  // NAME=COST
 };
 
@@ -76,9 +77,11 @@ void run(const Options& opt) {
   sort_by_cell(cells);
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   std::vector<std::size_t> per_class(static_cast<std::size_t>(queries.size()), 0);
-  std::size_t unclassified = 0;
+  std::size_t unclassified = 0, uncertain = 0, statistics_unknown = 0;
   for (const ClassifiedCell& c : cells) {
+    statistics_unknown += !c.stats.known();
     if (c.match.class_index == kNoClass) ++unclassified;
+    else if (is_uncertain(c, opt.min_confidence)) ++uncertain;
     else ++per_class[static_cast<std::size_t>(c.match.class_index)];
   }
   fmt::print("{}: {} semantic voxels classified with {} ({} classes, void -> second best {}) in {:.2f} s\n", opt.map,
@@ -87,14 +90,22 @@ void run(const Options& opt) {
   for (int k = 0; k < queries.size(); ++k)
     fmt::print("| {} | {} | {:.1f}% |\n", markdown_cell(queries.names[k]), per_class[k],
                cells.empty() ? 0.0 : 100.0 * per_class[k] / cells.size());
+  if (opt.min_confidence > 0)
+    fmt::print("| uncertain (confidence < {}) | {} | {:.1f}% |\n", opt.min_confidence, uncertain,
+               cells.empty() ? 0.0 : 100.0 * uncertain / cells.size());
   if (unclassified) fmt::print("| (no class: zero embedding) | {} | |\n", unclassified);
+  if (statistics_unknown)
+    fmt::print("{} voxels have no observation statistics (a map file before format 3): their confidence is the class "
+               "margin alone\n",
+               statistics_unknown);
   if (!opt.csv.empty()) {
-    write_classified_csv(opt.csv, cells, queries);
+    write_classified_csv(opt.csv, cells, queries, opt.min_confidence);
     fmt::print("CSV  {}: {} rows\n", opt.csv, cells.size());
   }
   const std::vector<Rgb> colours = class_colours(queries);
   if (!opt.png.empty()) {
-    const BirdsEyeImage image = write_class_picture(opt.png, map, cells, queries, submap_path(map));
+    const BirdsEyeImage image =
+        write_class_picture(opt.png, map, cells, queries, submap_path(map), "path (submap anchors)", opt.min_confidence);
     fmt::print("PNG  {} (+ .yaml): {}x{} px at {:.3f} m per pixel, terrain layer by class\n", opt.png, image.rgb.cols,
                image.rgb.rows, image.resolution);
   }
@@ -102,13 +113,17 @@ void run(const Options& opt) {
     NavGridOptions options;
     options.robot_height = opt.robot_height;
     options.class_cost = class_costs(queries, opt.costs);
+    options.min_confidence = opt.min_confidence;
     const NavGrid grid = build_nav_grid(map, cells, options);
-    const NavGridFiles files = write_nav_grid(opt.grid, grid, queries.names, colours, submap_path(map));
-    std::size_t lethal = 0, unknown = 0;
+    const NavGridFiles files =
+        write_nav_grid(opt.grid, grid, queries.names, colours, submap_path(map), opt.min_confidence);
+    std::size_t lethal = 0, unknown = 0, uncertain_cells = 0;
     for (const int8_t c : grid.cost) lethal += c == kLethalCost, unknown += c == kUnknownCost;
-    fmt::print("grid {} + {} + {}: {}x{} cells of {:.2f} m, {} lethal, {} unknown (robot height {} m)\n",
+    for (const uint8_t u : grid.uncertain) uncertain_cells += u;
+    fmt::print("grid {} + {} + {}: {}x{} cells of {:.2f} m, {} lethal, {} unknown ({} of them uncertain ground) "
+               "(robot height {} m)\n",
                files.pgm.string(), files.yaml.string(), files.png.string(), grid.width, grid.height, grid.resolution,
-               lethal, unknown, opt.robot_height);
+               lethal, unknown, uncertain_cells, opt.robot_height);
   }
 }
 
@@ -122,7 +137,9 @@ void add(CLI::App& root) {
   cmd->add_option("--queries", opt->queries, "Query set file (train-queries / import-queries)")
       ->required()
       ->check(CLI::ExistingFile);
-  cmd->add_option("-o,--output", opt->csv, "Write one row per voxel: x,y,z,class,score,margin,count (CSV)");
+  cmd->add_option("-o,--output", opt->csv,
+                  "Write one row per voxel: x,y,z,class,score,margin,count,confidence (CSV; class `uncertain` below "
+                  "--min-confidence)");
   cmd->add_option("--png", opt->png,
                   "Write the terrain seen from above: the class of the ground of every column (not the top: tree "
                   "crowns do not hide it), with a legend, scale bar, north arrow, the submap path, and a map_server "
@@ -137,6 +154,12 @@ void add(CLI::App& root) {
   cmd->add_option("--cost", opt->costs,
                   "Grid: the cost of a class, CLASS=COST (-1 unknown .. 100 lethal; repeatable). Defaults: smooth 0, "
                   "rough 30, bumpy 60, obstacle 100, active 100, void unknown");
+  cmd->add_option("--min-confidence", opt->min_confidence,
+                  "Voxels whose confidence (0..1: the margin between the best and second-best class x n/(n+2) for n views; README 'Honest accuracy') is "
+                  "below this are `uncertain`: so named in the CSV, hatched in --png and --grid's picture, unknown "
+                  "(-1) in the grid. 0: off")
+      ->capture_default_str()
+      ->check(finite_range(0, 1));
   cmd->add_flag("--no-void-rule", opt->no_void_rule, "Let void classes win (the paper's rule is on by default)");
   cmd->add_flag("--ignore-model-id", opt->ignore_model_id,
                 "Accept queries whose model id differs from the map's (the dimension is still checked)");

@@ -1,7 +1,8 @@
 // `slamvdb demo`: the main job on built-in defaults, start to finish on a SIMULATED drive: generate
 // (or reuse) the sequence, build the map, train query vectors on images from the first half of the
-// drive, classify the map, evaluate on the second half against the per-image baseline, and write
-// the pictures and files a user looks at first.
+// drive, evaluate on the second half against the baselines (which also measures the confidence
+// below which voxels are uncertain), classify the map, and write the pictures and files a user
+// looks at first.
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
@@ -17,6 +18,7 @@
 #include "demo_outputs.hpp"
 #include "progress.hpp"
 #include "slamvdb/eval/confusion_png.hpp"
+#include "slamvdb/eval/coverage_png.hpp"
 #include "slamvdb/eval/image_baseline.hpp"
 #include "slamvdb/eval/map_evaluation.hpp"
 #include "slamvdb/inference/simulated_encoders.hpp"
@@ -149,19 +151,10 @@ void run(const Options& opt) {
     timings.emplace_back("training", step.seconds());
   }
 
-  // 4. Classification of the whole map.
-  {
-    Step step("classification");
-    std::vector<ClassifiedCell> cells = classify_map(map, queries);
-    sort_by_cell(cells);
-    write_classified_csv(out / "classes.csv", cells, queries);
-    std::vector<Eigen::Vector2d> path;
-    for (const Pose& T : seq.poses.poses()) path.push_back(T.translation().head<2>());
-    write_class_outputs(out, map, cells, queries, path);
-    timings.emplace_back("classification", step.seconds());
-  }
-
-  // 5. Evaluation on the second half, beside the per-image baseline.
+  // 4. Evaluation on the second half, beside the per-image baseline. It also measures the
+  // confidence threshold the pictures use: the least confident tenth of the scored voxels is
+  // uncertain (hatched, unknown to the planner).
+  float min_confidence = 0.f;
   {
     Step step("evaluation (second half of the drive)");
     std::vector<GroundTruthScan> scans;
@@ -200,6 +193,15 @@ void run(const Options& opt) {
     const MapEvaluation other = evaluate_rule(other_rule);
     const MapEvaluation single = evaluate_rule(FusionWeighting::kSingleView);
     const std::vector<CoveragePoint> coverage = accuracy_coverage(e);
+    const std::vector<CalibrationBin> calibration = calibration_table(e);
+    min_confidence = accuracy_coverage(e, {0.9}).at(0).min_confidence;
+    const std::vector<CoveragePoint> confident = accuracy_coverage(e, {0.9, 1.0});
+    const double rest = (confident[1].accuracy * confident[1].voxels - confident[0].accuracy * confident[0].voxels) /
+                        std::max<double>(1.0, static_cast<double>(confident[1].voxels - confident[0].voxels));
+    write_coverage_png(out / "coverage.png",
+                       {{fmt::format("{} (map.svdb)", to_string(map_rule)), accuracy_coverage(e, coverage_plot_fractions())},
+                        {std::string(to_string(other_rule)), accuracy_coverage(other, coverage_plot_fractions())}},
+                       "SIMULATED drive: accuracy of the most confident voxels");
     const std::string summary = comparison_markdown(
         {{fmt::format("map, {} (map.svdb)", rule_title(map_rule)), "voxels", e.voxels},
          {fmt::format("map, {}", rule_title(other_rule)), "voxels", other.voxels},
@@ -216,10 +218,15 @@ void run(const Options& opt) {
         "## Map ({}, map.svdb), paper Table 6.1 form, void ignored\n\n{}\n"
         "## Map, {}\n\n{}\n## Single-view voxel baseline\n\n{}\n## Per-image baseline\n\n{}\n"
         "## Accuracy against coverage (map, {})\n\nVoxels ranked by confidence (the margin between "
-        "the best and second-best class, damped for voxels seen in few views: class_confidence):\n\n{}",
+        "the best and second-best class, damped for voxels seen in few views: voxel_confidence; "
+        "coverage.png plots both rules):\n\n{}\n"
+        "## Calibration (map)\n\n{}\n"
+        "The pictures (classes.png, nav.png) hatch the least confident tenth of the voxels as uncertain "
+        "(confidence < {:.3f}, unknown to the planner in nav.pgm): they are {:.1f} % accurate, the rest {:.1f} %.\n",
         opt.seed, sim.describe(), summary, e.scans, b.images, rule_title(map_rule), to_markdown(e.report),
         rule_title(other_rule), to_markdown(other.report), to_markdown(single.report), to_markdown(br),
-        rule_title(map_rule), coverage_markdown(coverage));
+        rule_title(map_rule), coverage_markdown(coverage), calibration_markdown(calibration), min_confidence,
+        100 * rest, 100 * confident[0].accuracy);
     fmt::print("\n{}", text);
     write_output_file(out / "eval.md", text);
     nlohmann::json json = nlohmann::json::parse(to_json(e.report));
@@ -230,9 +237,23 @@ void run(const Options& opt) {
     json["single_view_baseline"] = nlohmann::json::parse(to_json(single.report));
     json["baseline"] = nlohmann::json::parse(to_json(br));
     json["accuracy_coverage"] = nlohmann::json::parse(coverage_json(coverage));
+    json["calibration"] = nlohmann::json::parse(calibration_json(calibration));
+    json["min_confidence"] = min_confidence;
     write_output_file(out / "eval.json", json.dump(2) + "\n");
     write_confusion_png(out / "confusion.png", e.voxels, fmt::format("voxel-wise labelling, {} voxels", e.voxels.scored()));
     timings.emplace_back("evaluation", step.seconds());
+  }
+
+  // 5. Classification of the whole map, the least confident voxels uncertain.
+  {
+    Step step("classification");
+    std::vector<ClassifiedCell> cells = classify_map(map, queries);
+    sort_by_cell(cells);
+    write_classified_csv(out / "classes.csv", cells, queries, min_confidence);
+    std::vector<Eigen::Vector2d> path;
+    for (const Pose& T : seq.poses.poses()) path.push_back(T.translation().head<2>());
+    write_class_outputs(out, map, cells, queries, path, min_confidence);
+    timings.emplace_back("classification", step.seconds());
   }
 
   // 6. A text query, and the whole map as a point cloud.
@@ -252,7 +273,7 @@ void run(const Options& opt) {
     if (entry.is_regular_file()) files.push_back(entry.path());
   std::sort(files.begin(), files.end());
   fmt::print("outputs (classes.png: terrain from above; nav.*: navigation grid for Nav2; query_grass.png: heat map; "
-             "map.html: 3D view; eval.md: the paper's table):\n");
+             "map.html: 3D view; eval.md: the paper's table; coverage.png: accuracy of the most confident voxels):\n");
   for (const fs::path& f : files) fmt::print("  {}\n", f.string());
 }
 

@@ -14,6 +14,7 @@
 #include "slamvdb/core/output_file.hpp"
 #include "slamvdb/core/text_escape.hpp"
 #include "slamvdb/eval/confusion_png.hpp"
+#include "slamvdb/eval/coverage_png.hpp"
 #include "slamvdb/eval/image_baseline.hpp"
 #include "slamvdb/eval/map_evaluation.hpp"
 #include "slamvdb/io/scan_io.hpp"
@@ -24,7 +25,7 @@ namespace slamvdb::cli::cmd_eval {
 namespace {
 
 struct Options {
-  std::string map, dataset, queries, ontology = "rellis3d-coarse", markdown, json, csv, png, part = "0:1";
+  std::string map, dataset, queries, ontology = "rellis3d-coarse", markdown, json, csv, png, coverage_png, part = "0:1";
   FeatureOptions features;
   bool baseline = false, no_void_rule = false, ignore_model_id = false;
 };
@@ -105,6 +106,11 @@ void run(Options opt) {
   fmt::print("\naccuracy of the most confident voxels:\n\n{}", coverage_markdown(coverage));
   markdown += "\nAccuracy of the most confident voxels:\n\n" + coverage_markdown(coverage);
   json["accuracy_coverage"] = nlohmann::json::parse(coverage_json(coverage));
+  // How the confidence compares with the accuracy it predicts.
+  const std::vector<CalibrationBin> calibration = calibration_table(r);
+  fmt::print("\ncalibration (voxels binned by confidence):\n\n{}", calibration_markdown(calibration));
+  markdown += "\nCalibration (voxels binned by confidence):\n\n" + calibration_markdown(calibration);
+  json["calibration"] = nlohmann::json::parse(calibration_json(calibration));
   if (opt.baseline) {
     std::vector<ImageRecord> images;
     for (const ImageRecord& img : select_labelled_images(seq, opt.features))
@@ -142,6 +148,11 @@ void run(Options opt) {
   if (!opt.csv.empty()) write_output_file(opt.csv, to_csv(r.report));
   if (!opt.png.empty())
     write_confusion_png(opt.png, r.voxels, fmt::format("voxel-wise labelling, {} voxels", r.voxels.scored()));
+  if (!opt.coverage_png.empty())
+    write_coverage_png(opt.coverage_png,
+                       {{map.info().fusion.empty() ? std::string("map") : "map (" + map.info().fusion + " fusion)",
+                         accuracy_coverage(r, coverage_plot_fractions())}},
+                       fmt::format("accuracy of the most confident voxels, {} voxels", r.scored_voxels.size()));
 }
 
 void add(CLI::App& root) {
@@ -165,6 +176,8 @@ void add(CLI::App& root) {
   cmd->add_option("--json", opt->json, "Write the scores as JSON (top level: accuracy, hit_rate, miou, classes)");
   cmd->add_option("--csv", opt->csv, "Write the scores as CSV");
   cmd->add_option("--png", opt->png, "Write the voxel-wise confusion matrix as a PNG");
+  cmd->add_option("--coverage-png", opt->coverage_png,
+                  "Write the accuracy-coverage curve (accuracy of the most confident x % of the voxels) as a PNG plot");
   cmd->add_flag("--baseline", opt->baseline,
                 "Also classify the pixels of the labelled images in the same part directly (the per-image baseline)");
   cmd->add_flag("--no-void-rule", opt->no_void_rule, "Let void classes win (the paper's rule is on by default)");
@@ -181,6 +194,7 @@ void add(CLI::App& root) {
   io->output("--json", opt->json);
   io->output("--csv", opt->csv);
   io->output("--png", opt->png);
+  io->output("--coverage-png", opt->coverage_png);
   cmd->callback([opt, io] {
     io->check();
     run(*opt);

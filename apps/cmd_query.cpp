@@ -155,14 +155,20 @@ void run_points(const Options& opt, const SemanticMap& map, const std::vector<Ve
   options.void_to_second_best = !opt.no_void_rule;
   const auto answers = query_points(map, points, queries ? &*queries : nullptr, options,
                                     opt.ignore_model_id ? ModelIdCheck::kIgnore : ModelIdCheck::kRequireMatch);
-  CsvWriter csv({"x", "y", "z", "found", "cell_x", "cell_y", "cell_z", "count", "class", "score", "margin"});
+  // weight / spread: the cell's observation statistics (spread S/W, empty for a map file before format
+  // 3); confidence: voxel_confidence of the class (with a query set).
+  CsvWriter csv({"x", "y", "z", "found", "cell_x", "cell_y", "cell_z", "count", "class", "score", "margin", "weight",
+                 "spread", "confidence"});
   for (const PointQuery& a : answers) {
     const std::string cls = a.match && a.match->class_index != kNoClass ? queries->names[a.match->class_index] : "";
     csv.row({fmt::format("{}", a.point_world.x()), fmt::format("{}", a.point_world.y()),
              fmt::format("{}", a.point_world.z()), a.found ? "1" : "0", fmt::format("{:.3f}", a.cell_centre.x()),
              fmt::format("{:.3f}", a.cell_centre.y()), fmt::format("{:.3f}", a.cell_centre.z()),
              fmt::format("{}", a.count), cls, a.match ? fmt::format("{:.6f}", a.match->score) : "",
-             a.match ? fmt::format("{:.6f}", a.match->margin) : ""});
+             a.match ? fmt::format("{:.6f}", a.match->margin) : "",
+             a.found ? fmt::format("{:.3f}", a.stats.weight) : "",
+             a.found && a.stats.known() && a.stats.weight > 0 ? fmt::format("{:.6f}", a.stats.spread / a.stats.weight) : "",
+             a.match ? fmt::format("{:.4f}", a.confidence) : ""});
   }
   if (opt.output.empty()) {
     // CSV on a terminal: class names are bounded when the query set is loaded (no control
@@ -299,7 +305,8 @@ void add(CLI::App& root) {
       ->check(CLI::ExistingFile);
   cmd->add_option("-o,--output", opt->output,
                   "Write the results; the format follows the extension: .csv (similarity: rank,x,y,z,score,count; "
-                  "points: x,y,z,found,cell_x,cell_y,cell_z,count,class,score,margin), .ply (voxels coloured by score), "
+                  "points: x,y,z,found,cell_x,cell_y,cell_z,count,class,score,margin,weight,spread,confidence; spread empty for "
+                  "maps before format 3), .ply (voxels coloured by score), "
                   ".png (heat map from above with a colour bar, and a map_server .yaml beside it), .html (3D view)");
   cmd->add_flag("--no-void-rule", opt->no_void_rule, "With --queries and --at: let void classes win");
   cmd->add_flag("--ignore-model-id", opt->ignore_model_id,

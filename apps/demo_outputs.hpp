@@ -2,8 +2,10 @@
 // Files written from a classified map, shared by `classify`, `export` and `demo`.
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
+#include <opencv2/core.hpp>
 #include <vector>
 
 #include "slamvdb/core/csv.hpp"
@@ -23,20 +25,28 @@
 
 namespace slamvdb::cli {
 
+// The class name written for a cell: empty without a class, `uncertain` below min_confidence.
+inline std::string_view class_label(const ClassifiedCell& c, const QuerySet& queries, float min_confidence) {
+  if (c.match.class_index == kNoClass) return {};
+  return is_uncertain(c, min_confidence) ? std::string_view("uncertain")
+                                         : std::string_view(queries.names[c.match.class_index]);
+}
+
 // One row per semantic voxel of the index (cell centre in the world frame):
-// x,y,z,class,score,margin,count. `cells` in the order to write (sort_by_cell for a stable file).
+// x,y,z,class,score,margin,count,confidence; the class is `uncertain` below min_confidence (score
+// and margin stay the best class's). `cells` in the order to write (sort_by_cell for a stable file).
 inline void write_classified_csv(const std::filesystem::path& path, const std::vector<ClassifiedCell>& cells,
-                                 const QuerySet& queries) {
-  CsvWriter csv({"x", "y", "z", "class", "score", "margin", "count"});
+                                 const QuerySet& queries, float min_confidence = 0.f) {
+  CsvWriter csv({"x", "y", "z", "class", "score", "margin", "count", "confidence"});
   for (const ClassifiedCell& c : cells) {
     const Vec3d& p = c.position_world;
-    const std::string_view name =
-        c.match.class_index == kNoClass ? std::string_view() : std::string_view(queries.names[c.match.class_index]);
-    csv.row({fmt::format("{:.3f}", p.x()), fmt::format("{:.3f}", p.y()), fmt::format("{:.3f}", p.z()), name,
-             fmt::format("{:.6f}", c.match.score), fmt::format("{:.6f}", c.match.margin), fmt::format("{}", c.count)});
+    csv.row({fmt::format("{:.3f}", p.x()), fmt::format("{:.3f}", p.y()), fmt::format("{:.3f}", p.z()),
+             class_label(c, queries, min_confidence), fmt::format("{:.6f}", c.match.score),
+             fmt::format("{:.6f}", c.match.margin), fmt::format("{}", c.count), fmt::format("{:.4f}", c.confidence)});
   }
   write_output_file(path, csv.text());
 }
+
 
 // The map's occupied voxels in the world, semantic ones coloured by `colour_of(index into cells)`
 // when `cells` has them (any subset, e.g. search results), the others grey by height (dimmed).
@@ -76,7 +86,8 @@ inline std::vector<Rgb> class_colours(const QuerySet& queries) {
 inline BirdsEyeImage write_class_picture(const std::filesystem::path& png, const SemanticMap& map,
                                          const std::vector<ClassifiedCell>& cells, const QuerySet& queries,
                                          const std::vector<Eigen::Vector2d>& path,
-                                         const std::string& path_label = "path (submap anchors)") {
+                                         const std::string& path_label = "path (submap anchors)",
+                                         float min_confidence = 0.f) {
   const std::vector<Rgb> colours = class_colours(queries);
   const auto voxels = coloured_map(map, cells, [&](std::size_t j) {
     const int k = cells[j].match.class_index;
@@ -89,6 +100,17 @@ inline BirdsEyeImage write_class_picture(const std::filesystem::path& png, const
   notes.title = "terrain classes (ground of each column)";
   for (int k = 0; k < queries.size(); ++k) notes.legend.emplace_back(queries.names[k], colours[k]);
   notes.legend.emplace_back("no semantics (dark grey by height)", Rgb{90, 90, 90});
+  if (std::any_of(cells.begin(), cells.end(), [&](const ClassifiedCell& c) { return is_uncertain(c, min_confidence); })) {
+    // The same voxels rendered the same way, uncertain ones white: the pixels to hatch.
+    const auto marked = coloured_map(map, cells, [&](std::size_t j) {
+      return is_uncertain(cells[j], min_confidence) ? Rgb{255, 255, 255} : Rgb{0, 0, 0};
+    });
+    const BirdsEyeImage mask = render_birds_eye(marked, map.params().occupancy.voxel_size, params);
+    cv::Mat hatched;
+    cv::inRange(mask.rgb, cv::Scalar(255, 255, 255), cv::Scalar(255, 255, 255), hatched);
+    notes.hatched = hatched;
+    notes.legend.emplace_back(uncertain_legend(min_confidence), kHatchColour);
+  }
   if (path.size() >= 2) notes.legend.emplace_back(path_label, Rgb{255, 60, 60});
   notes.trajectory = path;
   annotate(image, notes);
@@ -126,12 +148,13 @@ inline BirdsEyeImage write_score_picture(const std::filesystem::path& png, const
 // driven trajectory (world x, y).
 inline void write_class_outputs(const std::filesystem::path& out, const SemanticMap& map,
                                 const std::vector<ClassifiedCell>& cells, const QuerySet& queries,
-                                const std::vector<Eigen::Vector2d>& path) {
-  write_class_picture(out / "classes.png", map, cells, queries, path, "path driven");
+                                const std::vector<Eigen::Vector2d>& path, float min_confidence = 0.f) {
+  write_class_picture(out / "classes.png", map, cells, queries, path, "path driven", min_confidence);
   NavGridOptions options;
   for (const std::string& name : queries.names) options.class_cost.push_back(default_terrain_cost(name).value_or(50));
+  options.min_confidence = min_confidence;
   const std::vector<Rgb> colours = class_colours(queries);
-  write_nav_grid(out / "nav", build_nav_grid(map, cells, options), queries.names, colours, path);
+  write_nav_grid(out / "nav", build_nav_grid(map, cells, options), queries.names, colours, path, min_confidence);
   if (html_viewer_available()) {
     HtmlViewerScene scene;
     scene.title = "slamvdb demo: terrain classes (SIMULATED sequence and features)";

@@ -9,6 +9,7 @@
 #include <functional>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
+#include <sqlite3.h>
 #include <string>
 #include <vector>
 
@@ -46,6 +47,20 @@ std::string encode(const char* ext, const cv::Mat& image) {
   std::vector<uchar> bytes;
   cv::imencode(ext, image, bytes);
   return raw(bytes);
+}
+
+// A format-3 map file made format 2 in place: the statistics columns dropped, version 2.
+bool format_2_map_file(const fs::path& file) {
+  sqlite3* db = nullptr;
+  bool ok = sqlite3_open(file.c_str(), &db) == SQLITE_OK;
+  for (const char* sql : {"ALTER TABLE semantics DROP COLUMN stats_crc", "ALTER TABLE semantics DROP COLUMN stats",
+                          "PRAGMA user_version = 2"})
+    if (ok && sqlite3_exec(db, sql, nullptr, nullptr, nullptr) != SQLITE_OK) {
+      std::fprintf(stderr, "%s: %s: %s\n", file.c_str(), sql, sqlite3_errmsg(db));
+      ok = false;
+    }
+  sqlite3_close(db);
+  return ok;
 }
 
 }  // namespace
@@ -158,6 +173,10 @@ int main(int argc, char** argv) {
   }
   map.finish_active_submap();
   slamvdb::save_map(out_dir / "seed.svdb.tmp", map);
+  seed("map_file", "v3", file_bytes(out_dir / "seed.svdb.tmp"));
+  // The same map as format 2 wrote it (no statistics columns): the loader's fallback, which
+  // gives every entry weight = count and an unknown spread.
+  if (!format_2_map_file(out_dir / "seed.svdb.tmp")) return 1;
   seed("map_file", "v2", file_bytes(out_dir / "seed.svdb.tmp"));
   fs::remove(out_dir / "seed.svdb.tmp");
 

@@ -1,5 +1,6 @@
 // The `slamvdb` Python module (pybind11): load, build, query and save semantic maps from Python with
 // numpy arrays. A thin adapter: every call goes to the C++ library.
+#include <limits>
 #include <pybind11/eigen.h>
 #include <pybind11/functional.h>
 #include <pybind11/numpy.h>
@@ -66,6 +67,33 @@ py::tuple semantic_voxels(const SemanticMap& map) {
   return py::make_tuple(positions, embeddings, counts);
 }
 
+// A cell's spread as the API reports it: S / W (the weighted mean squared distance of its
+// observations from their mean), NaN when not known (map files before format 3).
+float spread_per_weight(VoxelStatistics s) {
+  return s.known() && s.weight > 0 ? s.spread / s.weight : std::numeric_limits<float>::quiet_NaN();
+}
+
+// The statistics of the semantic cells, in the order of semantic_voxels (not a wider tuple there:
+// callers unpack it).
+py::tuple statistics(const SemanticMap& map) {
+  py::array_t<float> weights, spreads;
+  map.read_index([&](const GlobalIndex& index) {
+    const std::vector<std::size_t> order = index.order_by_key();
+    const auto n = static_cast<py::ssize_t>(order.size());
+    weights = py::array_t<float>(n);
+    spreads = py::array_t<float>(n);
+    std::vector<float> scratch(static_cast<std::size_t>(map.params().semantic.dim));
+    for (py::ssize_t i = 0; i < n; ++i) {
+      const std::size_t cell = order[static_cast<std::size_t>(i)];
+      index.read(cell, scratch.data());  // the mean of a shared cell, which its statistics need
+      const VoxelStatistics st = index.statistics(cell, scratch.data());
+      weights.mutable_at(i) = st.weight;
+      spreads.mutable_at(i) = spread_per_weight(st);
+    }
+  });
+  return py::make_tuple(weights, spreads);
+}
+
 py::tuple search(const SemanticMap& map, const F32& query, std::size_t top_k, std::optional<float> threshold) {
   SearchOptions o;
   o.top_k = top_k;
@@ -93,7 +121,7 @@ py::dict classify(const SemanticMap& map, const QuerySet& queries, bool void_rul
   const auto n = static_cast<py::ssize_t>(cells.size());
   py::array_t<double> positions({n, py::ssize_t{3}});
   py::array_t<int32_t> classes(n);
-  py::array_t<float> scores(n), margins(n);
+  py::array_t<float> scores(n), margins(n), confidences(n);
   py::array_t<uint32_t> counts(n);
   auto p = positions.mutable_unchecked<2>();
   for (py::ssize_t i = 0; i < n; ++i) {
@@ -101,10 +129,12 @@ py::dict classify(const SemanticMap& map, const QuerySet& queries, bool void_rul
     classes.mutable_at(i) = cells[i].match.class_index;
     scores.mutable_at(i) = cells[i].match.score;
     margins.mutable_at(i) = cells[i].match.margin;
+    confidences.mutable_at(i) = cells[i].confidence;
     counts.mutable_at(i) = cells[i].count;
   }
   py::dict d;
   d["positions"] = positions, d["classes"] = classes, d["scores"] = scores, d["margins"] = margins;
+  d["confidences"] = confidences;
   d["counts"] = counts, d["names"] = queries.names;
   return d;
 }
@@ -118,15 +148,17 @@ py::dict at_points(const SemanticMap& map, const F64& points) {
   const auto n = static_cast<py::ssize_t>(answers.size()), dim = static_cast<py::ssize_t>(map.params().semantic.dim);
   py::array_t<bool> found(n);
   py::array_t<uint32_t> counts(n);
-  py::array_t<float> embeddings({n, dim});
+  py::array_t<float> embeddings({n, dim}), weights(n), spreads(n);
   float* e = embeddings.mutable_data();
   for (py::ssize_t i = 0; i < n; ++i) {
     found.mutable_at(i) = answers[i].found;
     counts.mutable_at(i) = answers[i].count;
+    weights.mutable_at(i) = answers[i].found ? answers[i].stats.weight : 0.0f;
+    spreads.mutable_at(i) = answers[i].found ? spread_per_weight(answers[i].stats) : std::numeric_limits<float>::quiet_NaN();
     for (py::ssize_t k = 0; k < dim; ++k) e[i * dim + k] = answers[i].found ? answers[i].embedding[k] : 0.0f;
   }
   py::dict d;
-  d["found"] = found, d["counts"] = counts, d["embeddings"] = embeddings;
+  d["found"] = found, d["counts"] = counts, d["embeddings"] = embeddings, d["weights"] = weights, d["spreads"] = spreads;
   return d;
 }
 
@@ -220,6 +252,10 @@ PYBIND11_MODULE(slamvdb, m) {
       .def("save", [](const SemanticMap& s, const std::filesystem::path& p) { save_map(p, s); }, py::arg("path"),
            "Write the map file (.svdb), atomically")
       .def("semantic_voxels", &semantic_voxels, "(positions N x 3, embeddings N x dim, counts N), in cell order")
+      .def("statistics", &statistics,
+           "(weights N, spreads N) of the semantic voxels, in the order of semantic_voxels: the observations' summed "
+           "weight (the count under the paper's rule) and their spread S/W (weighted mean squared distance from the "
+           "voxel's embedding; NaN for maps saved before format 3)")
       .def("occupied_voxels",
            [](const SemanticMap& s) {
              std::vector<double> xyz;
@@ -237,9 +273,11 @@ PYBIND11_MODULE(slamvdb, m) {
            "Cosine similarity with a query vector: (positions, scores, counts), best first")
       .def("classify", &classify, py::arg("queries"), py::arg("void_rule") = true, py::arg("ignore_model_id") = false,
            "Label every semantic voxel with its most similar query (void takes its second-best with void_rule): "
-           "dict of positions, classes, scores, margins, counts, names")
+           "dict of positions, classes, scores, margins, confidences (0..1: class margin x n/(n+2) for n views, as "
+           "classify --min-confidence uses), counts, names")
       .def("at", &at_points, py::arg("points"),
-           "What the map holds at world points (N x 3): dict of found, counts, embeddings");
+           "What the map holds at world points (N x 3): dict of found, counts, embeddings, weights, spreads (S/W; NaN "
+           "where not found or not known)");
 
   m.def("load_map", [](const std::filesystem::path& p) { return std::make_unique<SemanticMap>(load_map(p)); },
         py::arg("path"), "Load a map file (.svdb)");

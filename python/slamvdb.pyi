@@ -62,6 +62,10 @@ class Map:
         self,
     ) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float32], npt.NDArray[np.uint32]]:
         """(positions N x 3, embeddings N x dim, counts N), in cell order."""
+    def statistics(self) -> tuple[npt.NDArray[np.float32], npt.NDArray[np.float32]]:
+        """(weights N, spreads N) of the semantic voxels, in the order of semantic_voxels: the
+        observations' summed weight (the count under the paper's rule) and their spread S/W (NaN for
+        maps saved before format 3)."""
     def occupied_voxels(self) -> npt.NDArray[np.float64]:
         """Centres of the occupied world cells (all submaps combined), N x 3."""
     def search(
@@ -70,9 +74,10 @@ class Map:
         """Cosine similarity with a query vector: (positions, scores, counts), best first."""
     def classify(self, queries: QuerySet, void_rule: bool = True, ignore_model_id: bool = False) -> dict[str, Any]:
         """Label every semantic voxel with its most similar query (void takes its second-best with
-        void_rule): dict of positions, classes, scores, margins, counts, names."""
+        void_rule): dict of positions, classes, scores, margins, confidences (0..1), counts, names."""
     def at(self, points: npt.ArrayLike) -> dict[str, npt.NDArray[Any]]:
-        """What the map holds at world points (N x 3): dict of found, counts, embeddings."""
+        """What the map holds at world points (N x 3): dict of found, counts, embeddings, weights,
+        spreads (S/W; NaN where not found or not known)."""
 
 def load_map(path: _Path) -> Map:
     """Load a map file (.svdb)."""

@@ -62,6 +62,12 @@ def test_build_query_save_load(tmp_path):
     answer = m.at(np.vstack([positions[:1], [[100.0, 100.0, 100.0]]]))
     assert list(answer["found"]) == [True, False]
     assert answer["counts"][0] == counts[0]
+    # Observation statistics: the paper's rule weighs each view 1; identical views do not spread.
+    weights, spreads = m.statistics()
+    assert weights.shape == counts.shape and np.array_equal(weights, counts.astype(np.float32))
+    assert np.allclose(spreads, 0.0, atol=1e-4)
+    assert answer["weights"][0] == weights[0] and answer["spreads"][0] == pytest.approx(0.0, abs=1e-4)
+    assert math.isnan(answer["spreads"][1])  # nothing there
 
     path = tmp_path / "map.svdb"
     m.save(path)
@@ -120,3 +126,6 @@ def test_classify_with_a_query_set_file(tmp_path):
     assert result["names"] == queries.names
     assert (result["classes"] == 0).all()  # every voxel saw "rough" (component 3)
     assert np.allclose(result["scores"], 1.0, atol=1e-3)
+    # Confidence: margin 1 (cosine 1 against 0), damped by n / (n + 2), no spread between identical views.
+    counts = result["counts"].astype(np.float32)
+    assert np.allclose(result["confidences"], counts / (counts + 2), atol=1e-3)

@@ -336,6 +336,20 @@ float squared_distance(EmbeddingView v, const float* x, std::size_t n) {
   return s;
 }
 
+float squared_distance(EmbeddingView a, EmbeddingView b, std::size_t n) {
+  // b decoded in blocks on the stack, each compared with a's slice by the kernel above.
+  constexpr std::size_t kBlock = 128;
+  float block[kBlock];
+  float s = 0;
+  const std::size_t a_bytes = bytes_per_value(a.precision), b_bytes = bytes_per_value(b.precision);
+  for (std::size_t i = 0; i < n; i += kBlock) {
+    const std::size_t m = std::min(kBlock, n - i);
+    decode({static_cast<const std::byte*>(b.data) + i * b_bytes, b.precision}, block, m);
+    s += squared_distance(EmbeddingView{static_cast<const std::byte*>(a.data) + i * a_bytes, a.precision}, block, m);
+  }
+  return s;
+}
+
 void add_scaled(float* acc, EmbeddingView v, float w, std::size_t n) {
   if (v.precision == EmbeddingPrecision::kFloat16)
     return dispatch().add_scaled_f16(acc, static_cast<const uint16_t*>(v.data), w, n);

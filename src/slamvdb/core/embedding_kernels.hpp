@@ -47,6 +47,8 @@ float running_mean_sq(float* v, const float* x, float w, std::size_t n);
 float running_mean_sq(uint16_t* v, const float* x, float w, std::size_t n);
 // sum_i (x_i - v_i)^2 with v decoded from its precision.
 float squared_distance(EmbeddingView v, const float* x, std::size_t n);
+// sum_i (a_i - b_i)^2, both decoded from their precisions (two submaps' entries of one cell).
+float squared_distance(EmbeddingView a, EmbeddingView b, std::size_t n);
 
 // acc <- acc + w * v (v decoded from its precision): count-weighted sums for index reads and merges.
 void add_scaled(float* acc, EmbeddingView v, float w, std::size_t n);

@@ -108,7 +108,7 @@ MapEvaluation evaluate_map(const SemanticMap& map, const std::vector<GroundTruth
     const int predicted = m.class_index == kNoClass ? ConfusionMatrix::kNoPrediction : class_of_query[m.class_index];
     result.voxels.add(truth, predicted);
     if (!result.voxels.is_ignored(truth))
-      result.scored_voxels.push_back({class_confidence(m, cells[c].count), predicted == truth});
+      result.scored_voxels.push_back({cells[c].confidence, predicted == truth, c});
   }
 
   result.report = result.voxels.report();
@@ -145,6 +145,48 @@ std::string coverage_json(const std::vector<CoveragePoint>& curve) {
   for (const CoveragePoint& p : curve)
     array.push_back(
         {{"fraction", p.fraction}, {"voxels", p.voxels}, {"accuracy", p.accuracy}, {"min_confidence", p.min_confidence}});
+  return array.dump();
+}
+
+std::vector<CalibrationBin> calibration_table(const MapEvaluation& e, int bins) {
+  if (bins < 1) throw Error(fmt::format("calibration table: {} bins (at least 1)", bins));
+  std::vector<CalibrationBin> table(static_cast<std::size_t>(bins));
+  std::vector<double> confidence_sum(table.size(), 0.0);
+  std::vector<std::size_t> right(table.size(), 0);
+  for (std::size_t b = 0; b < table.size(); ++b)
+    table[b].lower = static_cast<double>(b) / bins, table[b].upper = static_cast<double>(b + 1) / bins;
+  for (const MapEvaluation::ScoredVoxel& v : e.scored_voxels) {
+    const double c = std::isfinite(v.confidence) ? std::clamp(static_cast<double>(v.confidence), 0.0, 1.0) : 0.0;
+    const auto b = std::min(table.size() - 1, static_cast<std::size_t>(c * bins));
+    ++table[b].voxels;
+    confidence_sum[b] += c;
+    right[b] += v.correct;
+  }
+  for (std::size_t b = 0; b < table.size(); ++b)
+    if (table[b].voxels) {
+      table[b].mean_confidence = confidence_sum[b] / static_cast<double>(table[b].voxels);
+      table[b].accuracy = static_cast<double>(right[b]) / static_cast<double>(table[b].voxels);
+    }
+  return table;
+}
+
+std::string calibration_markdown(const std::vector<CalibrationBin>& table) {
+  std::string out = "| Confidence | Voxels | Mean confidence | Accuracy % |\n|---|---:|---:|---:|\n";
+  for (const CalibrationBin& b : table)
+    if (b.voxels)
+      out += fmt::format("| {:.1f}-{:.1f} | {} | {:.3f} | {:.2f} |\n", b.lower, b.upper, b.voxels, b.mean_confidence,
+                         100 * b.accuracy);
+  return out;
+}
+
+std::string calibration_json(const std::vector<CalibrationBin>& table) {
+  nlohmann::json array = nlohmann::json::array();
+  for (const CalibrationBin& b : table)
+    array.push_back({{"lower", b.lower},
+                     {"upper", b.upper},
+                     {"voxels", b.voxels},
+                     {"mean_confidence", b.mean_confidence},
+                     {"accuracy", b.accuracy}});
   return array.dump();
 }
 

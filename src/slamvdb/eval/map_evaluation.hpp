@@ -42,10 +42,12 @@ struct MapEvaluation {
   uint64_t points_total = 0;  // points of the scans
   uint64_t points_unlabelled = 0, points_void = 0, points_outside = 0;  // skipped, by reason
   std::size_t scans = 0, map_cells = 0, cells_with_points = 0;
-  // Per scored voxel: its class_confidence and whether its class was right (for accuracy_coverage).
+  // Per scored voxel: its voxel_confidence, whether its class was right (for accuracy_coverage and
+  // calibration_table) and its position in classify_map's result for this map.
   struct ScoredVoxel {
-    float confidence;
-    bool correct;
+    float confidence = 0.f;
+    bool correct = false;
+    std::size_t cell = 0;
   };
   std::vector<ScoredVoxel> scored_voxels{};
 };
@@ -64,6 +66,20 @@ std::string coverage_markdown(const std::vector<CoveragePoint>& curve);
 // The curve as a JSON array of {fraction, voxels, accuracy, min_confidence} (eval's and demo's
 // `accuracy_coverage`).
 std::string coverage_json(const std::vector<CoveragePoint>& curve);
+
+// The calibration table: the scored voxels binned by confidence (bins of equal width over 0..1,
+// the last one closed), each with its voxels, mean confidence and observed accuracy. A calibrated
+// confidence has accuracy close to it; what matters for ranking is that accuracy rises with it.
+struct CalibrationBin {
+  double lower = 0, upper = 0;  // confidence range [lower, upper)
+  std::size_t voxels = 0;
+  double mean_confidence = 0, accuracy = 0;  // 0 for an empty bin
+};
+std::vector<CalibrationBin> calibration_table(const MapEvaluation& e, int bins = 10);
+// "| Confidence | Voxels | Mean confidence | Accuracy % |" markdown table (empty bins left out).
+std::string calibration_markdown(const std::vector<CalibrationBin>& table);
+// JSON array of {lower, upper, voxels, mean_confidence, accuracy} (eval's `calibration`).
+std::string calibration_json(const std::vector<CalibrationBin>& table);
 
 using EvaluationProgress = std::function<void(std::size_t done, std::size_t total)>;
 

@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 #include <yaml-cpp/yaml.h>
 
+#include <algorithm>
 #include <fstream>
 #include <opencv2/imgcodecs.hpp>
 
@@ -51,7 +52,7 @@ TEST(ExportCommand, FormatsByExtensionDeterministicAndReadable) {
   std::ifstream csv(f.tmp.path / "a.csv");
   std::string line;
   std::getline(csv, line);
-  EXPECT_EQ(line, "x,y,z,class,score,margin,count");
+  EXPECT_EQ(line, "x,y,z,class,score,margin,count,confidence");
   std::size_t rows = 0, correct = 0;
   while (std::getline(csv, line)) {
     ++rows;
@@ -111,6 +112,44 @@ TEST(ExportCommand, ClassifyWritesTerrainPictureAndNavigationGrid) {
                               shell_quote(f.queries.string()) + " --grid " + f.out("n2") + " --cost nosuch=3"))
                 .exit_code,
             2);
+}
+
+TEST(ExportCommand, ClassifyMarksVoxelsBelowTheConfidenceThresholdUncertain) {
+  Fixture f;
+  const std::string base = "classify " + shell_quote(f.map.string()) + " --queries " + shell_quote(f.queries.string());
+  // Rows named `uncertain`, and the confidences, of `classify -o` at threshold T.
+  const auto run_at = [&](double t, std::vector<double>* confidences = nullptr) {
+    const auto r = run_command(f.cli(base + " -o " + f.out("u.csv") + " --min-confidence " + std::to_string(t)));
+    EXPECT_EQ(r.exit_code, 0) << r.output;
+    std::ifstream csv(f.tmp.path / "u.csv");
+    std::string line;
+    std::getline(csv, line);
+    EXPECT_EQ(line, "x,y,z,class,score,margin,count,confidence");
+    std::size_t uncertain = 0;
+    while (std::getline(csv, line)) {
+      uncertain += line.find(",uncertain,") != std::string::npos;
+      if (confidences) confidences->push_back(std::stod(line.substr(line.rfind(',') + 1)));
+    }
+    return uncertain;
+  };
+  std::vector<double> confidences;
+  EXPECT_EQ(run_at(0.0, &confidences), 0u);
+  ASSERT_EQ(confidences.size(), f.semantic_cells);
+  std::sort(confidences.begin(), confidences.end());
+  ASSERT_GT(confidences.front(), 0.0);
+  const std::size_t least = run_at(confidences.front() + 2e-4);  // above the least sure (CSV: 4 decimals)
+  EXPECT_GT(least, 0u);
+  EXPECT_LE(least, static_cast<std::size_t>(std::count_if(confidences.begin(), confidences.end(),
+                                                          [&](double c) { return c <= confidences.front() + 3e-4; })));
+  EXPECT_EQ(run_at(1.0), f.semantic_cells);  // n / (n + 2) < 1: nothing is that sure
+  // Uncertain ground is unknown to the planner.
+  ASSERT_EQ(run_command(f.cli(base + " --grid " + f.out("nav") + " --min-confidence 1")).exit_code, 0);
+  const cv::Mat pgm = cv::imread((f.tmp.path / "nav.pgm").string(), cv::IMREAD_UNCHANGED);
+  std::size_t passable = 0;
+  for (int r = 0; r < pgm.rows; ++r)
+    for (int c = 0; c < pgm.cols; ++c) passable += pgm.at<uint8_t>(r, c) < 100;
+  EXPECT_EQ(passable, 0u);
+  EXPECT_EQ(run_command(f.cli(base + " --min-confidence 1.5")).exit_code, 2);
 }
 
 }  // namespace

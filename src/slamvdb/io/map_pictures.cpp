@@ -54,14 +54,32 @@ Rgb score_colour(float t) {
   return score_colour_ramp()[static_cast<std::size_t>(std::lround(clamped * 255.0f))];
 }
 
+void hatch(BirdsEyeImage& image, const cv::Mat& mask) {
+  if (mask.empty()) return;
+  if (mask.size() != image.rgb.size() || mask.type() != CV_8UC1)
+    throw Error(fmt::format("hatch mask {}x{} does not match the {}x{} picture", mask.cols, mask.rows, image.rgb.cols,
+                            image.rgb.rows));
+  // A period of 6 px (at least 2 lines per enlarged voxel) keeps 4 of 6 pixels' colour.
+  for (int r = 0; r < mask.rows; ++r)
+    for (int c = 0; c < mask.cols; ++c)
+      if (mask.at<uint8_t>(r, c) && (r + c) % 6 < 2) image.rgb.at<cv::Vec3b>(r, c) = {kHatchColour[0], kHatchColour[1], kHatchColour[2]};
+}
+
+std::string uncertain_legend(float min_confidence) {
+  return fmt::format("uncertain (confidence < {:.3g}): hatched, unknown to the planner", min_confidence);
+}
+
 void annotate(BirdsEyeImage& image, const PictureAnnotations& a) {
   // A small map is enlarged (whole pixels, the resolution follows) so that the annotations do
   // not cover it and text stays readable.
+  cv::Mat hatched = a.hatched;
   if (const int longest = std::max(image.rgb.cols, image.rgb.rows); longest > 0 && longest < 600) {
     const int k = std::min(8, (600 + longest - 1) / longest);
     cv::resize(image.rgb, image.rgb, cv::Size(), k, k, cv::INTER_NEAREST);
+    if (!hatched.empty()) cv::resize(hatched, hatched, cv::Size(), k, k, cv::INTER_NEAREST);
     image.resolution /= k;
   }
+  hatch(image, hatched);
   cv::Mat& m = image.rgb;  // RGB order: cv::Scalar(r, g, b)
   const double scale = std::clamp(m.cols / 900.0, 0.35, 0.8);  // font scale for the picture's size
   const int line = static_cast<int>(std::lround(26 * scale / 0.6)), pad = 6;

@@ -25,8 +25,19 @@ struct PictureAnnotations {
   };
   std::optional<ColourBar> colour_bar;
   std::vector<Eigen::Vector2d> trajectory;  // world x, y, drawn as a line (the driven path)
+  // CV_8UC1 of the picture's size before annotate enlarges it: nonzero pixels are drawn hatched
+  // (hatch(); e.g. uncertain terrain). Empty: none. A legend line says what it means.
+  cv::Mat hatched;
   bool scale_bar = true, north_arrow = true;
 };
+
+// Dark diagonal lines over the pixels where `mask` (CV_8UC1, the image's size) is nonzero: the
+// colour underneath stays readable between them.
+void hatch(BirdsEyeImage& image, const cv::Mat& mask);
+// The legend swatch of hatched areas (the lines' colour).
+inline constexpr Rgb kHatchColour{30, 30, 30};
+// The legend line of hatched uncertain terrain (classify --min-confidence).
+std::string uncertain_legend(float min_confidence);
 
 // Draws the annotations onto the picture. A picture under 600 pixels is first enlarged by a whole
 // factor (its resolution follows, so pixel_of() and the YAML keep holding).

@@ -18,10 +18,12 @@ struct NavGridFiles {
 // The files of a grid written with `prefix` (PREFIX.pgm, .yaml, .png).
 NavGridFiles nav_grid_files(const std::filesystem::path& prefix);
 
-// class_names / class_colours: of the query set the grid was classified with.
+// class_names / class_colours: of the query set the grid was classified with. Uncertain ground
+// (grid.uncertain) is drawn in its class's colour, hatched, with a legend line naming
+// min_confidence (the grid's NavGridOptions::min_confidence).
 NavGridFiles write_nav_grid(const std::filesystem::path& prefix, const NavGrid& grid,
                             const std::vector<std::string>& class_names, const std::vector<Rgb>& class_colours,
-                            const std::vector<Eigen::Vector2d>& trajectory = {});
+                            const std::vector<Eigen::Vector2d>& trajectory = {}, float min_confidence = 0.f);
 
 // The PGM's pixel for a cost (raw mode).
 inline uint8_t nav_pgm_value(int8_t cost) { return cost < 0 ? 255 : static_cast<uint8_t>(cost); }

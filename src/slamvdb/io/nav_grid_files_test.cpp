@@ -7,6 +7,7 @@
 #include <yaml-cpp/yaml.h>
 
 #include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
 
 #include "slamvdb/core/error.hpp"
 #include "slamvdb/testing/temp_dir.hpp"
@@ -96,6 +97,41 @@ TEST(NavGrid, PgmAndYamlPlaceCellsInTheWorld) {
   EXPECT_EQ(pixel(10.0 * res + ox, oy - 100.0 * res + 100.0 * res), pgm.at<uint8_t>(pgm.rows - 1, 10));
   const cv::Mat png = cv::imread(files.png.string());
   EXPECT_EQ(png.cols % grid.width, 0);  // enlarged by a whole factor for its legend
+}
+
+TEST(NavGrid, UncertainGroundIsUnknownToThePlannerAndHatched) {
+  const SemanticMap map = scene();
+  std::vector<ClassifiedCell> cells = classify_ground(map);
+  for (ClassifiedCell& c : cells) c.confidence = c.position_world.x() < 0 ? 0.1f : 0.9f;  // west: unsure
+  NavGridOptions options;
+  options.class_cost = {0, 30};
+  const NavGrid sure = build_nav_grid(map, cells, options);  // threshold off: every class counts
+  EXPECT_EQ(cost_at(sure, -1.0, -1.0), 0);
+  options.min_confidence = 0.5f;
+  const NavGrid grid = build_nav_grid(map, cells, options);
+  EXPECT_EQ(cost_at(grid, -1.0, -1.0), kUnknownCost);  // smooth, but not sure of it
+  EXPECT_EQ(cost_at(grid, -1.0, 1.3), kUnknownCost);
+  EXPECT_EQ(cost_at(grid, 1.0, 1.3), 30);              // sure
+  EXPECT_EQ(cost_at(grid, 2.1, 0.0), kLethalCost);     // obstacles stay, whatever the class
+  const Eigen::Vector2i west = grid.cell_of(-1.0, -1.0);
+  EXPECT_EQ(grid.uncertain[grid.index(west.x(), west.y())], 1);
+  EXPECT_EQ(grid.ground_class[grid.index(west.x(), west.y())], 0);  // the class is kept
+  std::size_t uncertain = 0;
+  for (const uint8_t u : grid.uncertain) uncertain += u;
+  EXPECT_GT(uncertain, 100u);
+  // The picture hatches them: the hatch colour appears only with uncertain ground.
+  testing::TempDir tmp;
+  const auto hatch_pixels = [&](const NavGrid& g, const char* name) {
+    const NavGridFiles files =
+        write_nav_grid(tmp.path / name, g, {"smooth", "rough"}, {{0, 200, 0}, {200, 150, 0}}, {}, 0.5f);
+    cv::Mat mask;
+    const cv::Mat png = cv::imread(files.png.string());
+    cv::inRange(png, cv::Scalar(kHatchColour[2], kHatchColour[1], kHatchColour[0]),
+                cv::Scalar(kHatchColour[2], kHatchColour[1], kHatchColour[0]), mask);
+    return cv::countNonZero(mask);
+  };
+  EXPECT_GT(hatch_pixels(grid, "uncertain"), 1000);
+  EXPECT_LT(hatch_pixels(sure, "sure"), 200);  // at most the text's anti-aliasing
 }
 
 }  // namespace

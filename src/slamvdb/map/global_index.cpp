@@ -164,6 +164,7 @@ GlobalIndex::Parts GlobalIndex::parts(std::size_t i, float* scratch) const {
   if (c.refs.size() > 2 && !single_view_) {
     const IndexedVoxel v = read(i, scratch);
     p.embedding.view[0] = v.embedding, p.count = v.count;
+    p.stats = statistics(i, scratch);
     return p;
   }
   uint64_t total = 0;
@@ -177,14 +178,20 @@ GlobalIndex::Parts GlobalIndex::parts(std::size_t i, float* scratch) const {
   if (c.refs.size() == 1 || single_view_) {
     const EntryRef& r = c.refs[c.refs.size() == 1 ? 0 : best_ref(c)];
     p.embedding.view[0] = bindings_[r.submap].layer->embedding_of(r.handle);
+    p.stats = bindings_[r.submap].layer->statistics_of(r.handle);
     return p;
   }
   p.embedding.n = 2;
+  VoxelStatistics s[2];
   for (std::size_t k = 0; k < 2; ++k) {
     const SemanticLayer& layer = *bindings_[c.refs[k].submap].layer;
     p.embedding.view[k] = layer.embedding_of(c.refs[k].handle);
     p.embedding.weight[k] = static_cast<float>(static_cast<double>(layer.weight_of(c.refs[k].handle)) / weight);
+    s[k] = layer.statistics_of(c.refs[k].handle);
   }
+  // Chan's pairwise rule: the same value as statistics() about the combined mean, without writing it.
+  p.stats = combine_statistics(s[0], s[1],
+                               kernels::squared_distance(p.embedding.view[0], p.embedding.view[1], static_cast<std::size_t>(dim_)));
   return p;
 }
 

@@ -62,10 +62,12 @@ class GlobalIndex {
   IndexedVoxel read(std::size_t i, float* scratch) const;
   // Cell i for readers that combine two entries themselves (in registers, without writing their
   // mean anywhere): its entries and their count weights when it has one or two, else its mean in
-  // `scratch` as a single part. Most shared cells hold two entries (neighbouring submaps).
+  // `scratch` as a single part. Most shared cells hold two entries (neighbouring submaps). Its
+  // statistics as statistics() gives them (two entries: Chan's rule on their means' distance).
   struct Parts {
     CombinedView embedding;
     uint32_t count = 0;
+    VoxelStatistics stats{};
   };
   Parts parts(std::size_t i, float* scratch) const;
 

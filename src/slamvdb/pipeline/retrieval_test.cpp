@@ -7,6 +7,7 @@
 #include "slamvdb/core/error.hpp"
 #include "slamvdb/eval/image_baseline.hpp"
 #include "slamvdb/eval/map_evaluation.hpp"
+#include "slamvdb/query/class_confidence.hpp"
 #include "slamvdb/testing/pipeline_fixture.hpp"
 
 namespace slamvdb {
@@ -111,6 +112,38 @@ TEST_F(MappingPipelineTest, CompositeTextQueriesAndPointLookUps) {
   wrong.vectors = QueryMatrix::Ones(queries.size(), 32);
   EXPECT_THROW(classify_map(map, wrong), Error);
   EXPECT_THROW(similarity_search(map, std::vector<float>(32, 1.0f)), Error);
+}
+
+TEST_F(MappingPipelineTest, ClassifiedCellsCarryTheirStatisticsAndConfidence) {
+  const Sequence seq = read_sequence(dir_);
+  EncoderFeatureSource source(std::make_unique<SimulatedDenseEncoder>(encoder_config()),
+                              EncoderFeatureSource::Input::kLabels);
+  PipelineReport report;
+  PipelineOptions short_submaps = options();
+  short_submaps.map.submap_length = 4.0;  // neighbouring submaps share cells
+  const SemanticMap map = build_map(seq, &source, short_submaps, report);
+  const QuerySet queries = text_queries(encoder_config(), Ontology::builtin("rellis3d-coarse"));
+  const std::vector<ClassifiedCell> cells = classify_map(map, queries);
+  std::vector<Vec3d> centres;
+  for (const ClassifiedCell& c : cells) centres.push_back(c.position_world);
+  const auto answers = query_points(map, centres, &queries);
+  std::size_t shared = 0, spread = 0;
+  for (std::size_t i = 0; i < cells.size(); ++i) {
+    const ClassifiedCell& c = cells[i];
+    ASSERT_TRUE(answers[i].found);
+    // The paper's rule weighs each view 1; classify folds two submaps' entries by Chan's rule on
+    // their means, the point look-up about the fp32 mean: the same statistics.
+    EXPECT_FLOAT_EQ(c.stats.weight, static_cast<float>(c.count));
+    EXPECT_NEAR(c.stats.spread, answers[i].stats.spread, 1e-3f * (1.f + answers[i].stats.spread));
+    EXPECT_EQ(c.confidence, voxel_confidence(c.match, c.count, c.stats));
+    EXPECT_NEAR(answers[i].confidence, c.confidence, 1e-3f);
+    EXPECT_GE(c.confidence, 0.f);
+    EXPECT_LE(c.confidence, 1.f);
+    shared += answers[i].entries > 1;
+    spread += c.stats.spread > 0.f;
+  }
+  EXPECT_GT(shared, 10u);  // cells two submaps share are checked too
+  EXPECT_GT(spread, cells.size() / 2);
 }
 
 }  // namespace

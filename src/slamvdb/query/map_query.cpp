@@ -11,6 +11,7 @@
 #include <queue>
 
 #include "slamvdb/core/error.hpp"
+#include "slamvdb/query/class_confidence.hpp"
 
 namespace slamvdb {
 namespace {
@@ -120,10 +121,14 @@ std::vector<ClassifiedCell> classify_map(const SemanticMap& map, const QuerySet&
           const GlobalIndex::Parts v = index.parts(begin + j, local.means.data() + j * dim);
           local.rows[j] = v.embedding;
           const IndexCellKey& cell = index.key(begin + j);
-          out[begin + j] = {cell, center_of_key(cell, index.cell_size()), v.count, {}};
+          out[begin + j] = {cell, center_of_key(cell, index.cell_size()), v.count, {}, v.stats};
         }
         classifier.classify_combined(local.rows.data(), n, local.matches.data());
-        for (std::size_t j = 0; j < n; ++j) out[begin + j].match = local.matches[j];
+        for (std::size_t j = 0; j < n; ++j) {
+          ClassifiedCell& c = out[begin + j];
+          c.match = local.matches[j];
+          c.confidence = voxel_confidence(c.match, c.count, c.stats);
+        }
       }
     });
   });
@@ -149,19 +154,23 @@ std::vector<PointQuery> query_points(const SemanticMap& map, std::span<const Vec
       PointQuery& q = out[i];
       q.point_world = points_world[i];
       if (!points_world[i].allFinite()) continue;
-      const auto v = index.read_at(points_world[i], scratch.data());
-      if (!v) continue;
+      if (!in_grid_extent(points_world[i] / index.cell_size())) continue;
+      const auto at = index.find(index.cell_of(points_world[i]));
+      if (!at) continue;
+      const IndexedVoxel v = index.read(*at, scratch.data());
+      q.stats = index.statistics(*at, scratch.data());  // scratch: the mean of a shared cell
       q.found = true;
-      q.cell = v->cell;
-      q.cell_centre = v->position_world;
-      q.count = v->count;
-      q.entries = v->entries;
+      q.cell = v.cell;
+      q.cell_centre = v.position_world;
+      q.count = v.count;
+      q.entries = v.entries;
       q.embedding.resize(dim);
-      kernels::decode(v->embedding, q.embedding.data(), dim);
+      kernels::decode(v.embedding, q.embedding.data(), dim);
       if (classifier) {
         QueryMatch m;
         classifier->classify(q.embedding.data(), 1, &m);
         q.match = m;
+        q.confidence = voxel_confidence(m, q.count, q.stats);
       }
     }
   });

@@ -40,7 +40,15 @@ struct ClassifiedCell {
   Vec3d position_world;
   uint32_t count = 0;
   QueryMatch match;  // class (into the query set), cosine score, margin to the runner-up
+  VoxelStatistics stats{};  // its observations' weight and spread (spread NaN: map before format 3)
+  float confidence = 0.f;   // voxel_confidence (query/class_confidence.hpp), 0..1
 };
+
+// A cell classified below a confidence threshold (classify --min-confidence): its class is shown as
+// `uncertain`. Cells without a class are not uncertain, they have none.
+inline bool is_uncertain(const ClassifiedCell& c, float min_confidence) {
+  return c.match.class_index != kNoClass && c.confidence < min_confidence;
+}
 
 // Every semantic cell of the map, at its position in the index (result i is GlobalIndex cell i;
 // sort_by_cell gives the order outputs are written in). Checks the query set against the map
@@ -61,7 +69,9 @@ struct PointQuery {
   uint32_t count = 0;
   uint32_t entries = 0;       // submap entries averaged into the cell
   std::vector<float> embedding;  // the cell's count-weighted mean, fp32
+  VoxelStatistics stats{};      // the cell's observation statistics (spread NaN: map before format 3)
   std::optional<QueryMatch> match;  // with a query set
+  float confidence = 0.f;       // voxel_confidence of the match (with a query set)
 };
 
 std::vector<PointQuery> query_points(const SemanticMap& map, std::span<const Vec3d> points_world,

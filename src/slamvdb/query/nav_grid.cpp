@@ -58,17 +58,18 @@ NavGrid build_nav_grid(const SemanticMap& map, const std::vector<ClassifiedCell>
   grid.cost.assign(n, kUnknownCost);
   grid.ground_class.assign(n, -1);
   grid.obstacle.assign(n, 0);
+  grid.uncertain.assign(n, 0);
 
   // The ground's class: the semantic cell at the ground, else the lowest one within a cell above
   // it (the camera may have seen the top of a ground voxel the LiDAR put one cell lower).
-  absl::flat_hash_map<std::pair<int, int>, std::pair<int, int>> ground_semantic;  // column -> (z, class)
+  absl::flat_hash_map<std::pair<int, int>, const ClassifiedCell*> ground_semantic;  // column -> its ground cell
   for (const ClassifiedCell& c : cells) {
     const auto it = columns.find({c.cell.x(), c.cell.y()});
     if (it == columns.end() || c.match.class_index == kNoClass) continue;
     const int dz = c.cell.z() - it->second.ground_z;
     if (dz < 0 || dz > 1) continue;
-    auto [entry, inserted] = ground_semantic.try_emplace(it->first, c.cell.z(), c.match.class_index);
-    if (!inserted && c.cell.z() < entry->second.first) entry->second = {c.cell.z(), c.match.class_index};
+    auto [entry, inserted] = ground_semantic.try_emplace(it->first, &c);
+    if (!inserted && c.cell.z() < entry->second->cell.z()) entry->second = &c;
   }
 
   const int clear_cells = static_cast<int>(std::ceil(options.robot_height / res));
@@ -81,11 +82,14 @@ NavGrid build_nav_grid(const SemanticMap& map, const std::vector<ClassifiedCell>
       if (above >= 2 && above <= clear_cells) grid.obstacle[i] = 1;
     }
     if (const auto g = ground_semantic.find(xy); g != ground_semantic.end()) {
-      const int k = g->second.second;
+      const int k = g->second->match.class_index;
       if (k < 0 || static_cast<std::size_t>(k) >= options.class_cost.size())
         throw Error(fmt::format("no cost given for class {} of the navigation grid", k));
       grid.ground_class[i] = static_cast<int16_t>(k);
-      grid.cost[i] = options.class_cost[static_cast<std::size_t>(k)];
+      if (is_uncertain(*g->second, options.min_confidence))
+        grid.uncertain[i] = 1;  // cost stays unknown
+      else
+        grid.cost[i] = options.class_cost[static_cast<std::size_t>(k)];
     }
     if (grid.obstacle[i]) grid.cost[i] = kLethalCost;
   }

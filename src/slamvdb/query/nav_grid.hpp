@@ -22,6 +22,9 @@ struct NavGridOptions {
   double robot_height = 1.5;  // metres above the ground that must be free to pass
   // Cost of each query-set class (by index); kUnknownCost leaves its columns unknown.
   std::vector<int8_t> class_cost;
+  // Ground whose voxel_confidence is below this is uncertain: its class is kept, its cost is
+  // unknown, so that a planner does not drive on a guess (0: off).
+  float min_confidence = 0.f;
 };
 
 // The default cost of a class name: the paper's terrain classes (smooth 0, rough 30, bumpy 60,
@@ -36,6 +39,7 @@ struct NavGrid {
   std::vector<int8_t> cost;          // 0..100, kUnknownCost
   std::vector<int16_t> ground_class; // query-set class of the ground, -1 unknown
   std::vector<uint8_t> obstacle;     // 1: something within the robot height above the ground
+  std::vector<uint8_t> uncertain;    // 1: ground class below min_confidence (cost unknown)
   std::size_t index(int col, int row) const { return static_cast<std::size_t>(row) * width + col; }
   // Cell containing a world point (may be outside the grid).
   Eigen::Vector2i cell_of(double x, double y) const;

@@ -8,6 +8,8 @@
 #include <map>
 #include <tuple>
 
+#include "slamvdb/query/class_confidence.hpp"
+#include "slamvdb/query/map_query.hpp"
 #include "slamvdb/store/map_file_writer.hpp"
 #include "slamvdb/testing/map_store_fixtures.hpp"
 
@@ -54,6 +56,7 @@ TEST(MapStatistics, Format3KeepsThemAndFormat2FilesLoadWithThemUnknown) {
   EXPECT_TRUE(fused.known());
   EXPECT_GT(fused.spread, 0.f);
 
+  fs::copy_file(v3, dir / "v3.svdb.keep");
   // The same file as format 2 wrote it: no statistics columns.
   set_pragma(v3, "user_version = 2");
   {
@@ -72,6 +75,26 @@ TEST(MapStatistics, Format3KeepsThemAndFormat2FilesLoadWithThemUnknown) {
       EXPECT_FALSE(layer.statistics_of(h).known());
     });
   });
+  // Queries read them as unknown: the confidence is the class margin alone, also with the spread
+  // factor on, which damps the format-3 map's fused voxel.
+  QuerySet queries;
+  queries.model_id = "test";
+  queries.names = {"a", "b"};
+  queries.vectors = QueryMatrix::Zero(2, 8);
+  queries.vectors(0, 7) = queries.vectors(1, 0) = 1;
+  for (const ClassifiedCell& c : classify_map(old, queries, {}, ModelIdCheck::kIgnore)) {
+    EXPECT_FALSE(c.stats.known());
+    EXPECT_EQ(c.confidence, class_confidence(c.match, c.count));
+    EXPECT_EQ(voxel_confidence(c.match, c.count, c.stats, kMedianSpread), c.confidence);
+  }
+  std::size_t known = 0, damped = 0;
+  for (const ClassifiedCell& c : classify_map(load_map(dir / "v3.svdb.keep"), queries, {}, ModelIdCheck::kIgnore)) {
+    EXPECT_EQ(c.confidence, voxel_confidence(c.match, c.count, c.stats));
+    known += c.stats.known();
+    damped += voxel_confidence(c.match, c.count, c.stats, kMedianSpread) < class_confidence(c.match, c.count);
+  }
+  EXPECT_GE(known, 1u);
+  EXPECT_GE(damped, 1u);  // the voxel of three different observations
   fs::remove_all(dir);
 }
 
