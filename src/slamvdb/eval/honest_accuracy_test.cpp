@@ -1,6 +1,6 @@
 // Issue 22 on a short SIMULATED drive with the realistic encoder: the per-image baseline is clearly
 // below the clean encoder's, the fused map beats it and the single-view voxel baseline on voxel
-// accuracy and mIoU, quality weighting stays within a point of the paper's plain running mean, and
+// accuracy and mIoU, quality weighting does not lose to the paper's plain running mean, and
 // the most confident half of the voxels is the more accurate. Everything is computed once (one
 // drive, five scorings) and asserted by the tests below. The queries are class means of the first
 // half's features; images and scans of the second half are scored.
@@ -155,12 +155,12 @@ TEST_F(HonestAccuracyTest, FusedMapBeatsPerImageAndSingleView) {
   }
 }
 
-TEST_F(HonestAccuracyTest, QualityWeightingStaysCloseToThePaperRule) {
-  // Measured: quality weighting is within a point of the plain running mean, ahead on some drives
-  // and behind on others (README); it does not yet beat it reliably (issue 22, open).
+TEST_F(HonestAccuracyTest, QualityWeightingDoesNotLoseToThePaperRule) {
+  // Measured on this drive: +0.01 points of accuracy, +0.25 of mIoU (seeds 1 and 2 of the same
+  // drive: -0.08 / 0.00 and +0.41 / +0.31). The first shapes lost 0.5 points here (projective_fusion.hpp).
   const HonestScores quality = results_.at("quality"), paper = results_.at("paper");
-  EXPECT_GE(quality.accuracy, paper.accuracy - 0.01);
-  EXPECT_GE(quality.miou, paper.miou - 0.01);
+  EXPECT_GE(quality.accuracy, paper.accuracy - 0.002);
+  EXPECT_GE(quality.miou, paper.miou - 0.002);
 }
 
 TEST_F(HonestAccuracyTest, TheMostConfidentHalfOfTheVoxelsIsMoreAccurateThanTheRest) {
