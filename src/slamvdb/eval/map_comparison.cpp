@@ -6,13 +6,6 @@
 namespace slamvdb {
 namespace {
 
-std::vector<IndexCellKey> occupied_cells(const SemanticMap& m) {
-  std::vector<IndexCellKey> cells;
-  for (const WorldOccupancyCell& c : m.world_occupancy())
-    if (c.log_odds >= m.params().occupancy.occupied_threshold) cells.push_back(c.cell);
-  return cells;  // sorted by key
-}
-
 std::size_t matched(const std::vector<IndexCellKey>& from, const std::vector<IndexCellKey>& in, int tolerance) {
   std::size_t n = 0;
   for (const IndexCellKey& c : from) {
@@ -28,8 +21,18 @@ std::size_t matched(const std::vector<IndexCellKey>& from, const std::vector<Ind
 
 }  // namespace
 
+OccupiedCells occupied_world_cells(const SemanticMap& m) {
+  OccupiedCells cells;
+  for (const WorldOccupancyCell& c : m.world_occupancy())
+    if (c.log_odds >= m.params().occupancy.occupied_threshold) cells.push_back(c.cell);
+  return cells;  // sorted by key
+}
+
 double occupied_iou(const SemanticMap& a, const SemanticMap& b, int tolerance) {
-  const auto ca = occupied_cells(a), cb = occupied_cells(b);
+  return occupied_iou(occupied_world_cells(a), occupied_world_cells(b), tolerance);
+}
+
+double occupied_iou(const OccupiedCells& ca, const OccupiedCells& cb, int tolerance) {
   if (ca.empty() && cb.empty()) return 1.0;
   const double shared = 0.5 * static_cast<double>(matched(ca, cb, tolerance) + matched(cb, ca, tolerance));
   return shared / (static_cast<double>(ca.size() + cb.size()) - shared);
