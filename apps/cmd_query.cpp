@@ -148,6 +148,18 @@ std::string output_format(const std::string& output) {
   return ext;
 }
 
+// A cell's weight and spread S/W as the CSVs write them (spread empty when not known: maps before
+// format 3).
+std::string weight_text(VoxelStatistics s) { return fmt::format("{:.3f}", s.weight); }
+std::string spread_text(VoxelStatistics s) {
+  return s.known() && s.weight > 0 ? fmt::format("{:.6f}", s.spread / s.weight) : "";
+}
+
+// A result's class name ("" without one).
+std::string class_text(const QuerySet& queries, const ScoredCell& r) {
+  return r.match && r.match->class_index != kNoClass ? queries.names[static_cast<std::size_t>(r.match->class_index)] : "";
+}
+
 void run_points(const Options& opt, const SemanticMap& map, const std::vector<Vec3d>& points) {
   std::optional<QuerySet> queries;
   if (!opt.queries.empty()) queries = load_query_set(opt.queries);
@@ -166,8 +178,7 @@ void run_points(const Options& opt, const SemanticMap& map, const std::vector<Ve
              fmt::format("{:.3f}", a.cell_centre.y()), fmt::format("{:.3f}", a.cell_centre.z()),
              fmt::format("{}", a.count), cls, a.match ? fmt::format("{:.6f}", a.match->score) : "",
              a.match ? fmt::format("{:.6f}", a.match->margin) : "",
-             a.found ? fmt::format("{:.3f}", a.stats.weight) : "",
-             a.found && a.stats.known() && a.stats.weight > 0 ? fmt::format("{:.6f}", a.stats.spread / a.stats.weight) : "",
+             a.found ? weight_text(a.stats) : "", a.found ? spread_text(a.stats) : "",
              a.match ? fmt::format("{:.4f}", a.confidence) : ""});
   }
   if (opt.output.empty()) {
@@ -182,7 +193,7 @@ void run_points(const Options& opt, const SemanticMap& map, const std::vector<Ve
 }
 
 void write_results(const std::string& format, const std::string& output, const Options& opt, const SemanticMap& map,
-                   const std::vector<ScoredCell>& results, float lo, float hi);
+                   const std::vector<ScoredCell>& results, const QuerySet* queries, float lo, float hi);
 
 void run(const Options& opt) {
   const bool spatial = !opt.at.empty() || !opt.at_csv.empty();
@@ -203,36 +214,57 @@ void run(const Options& opt) {
   SearchOptions search;
   search.top_k = opt.top_k;
   search.threshold = opt.threshold;
-  const auto results = similarity_search(map, std::span<const float>(q.data(), static_cast<std::size_t>(q.size())), search);
+  auto results = similarity_search(map, std::span<const float>(q.data(), static_cast<std::size_t>(q.size())), search);
+  // With a query set, each result also gets its class and confidence (as query --at gives them).
+  std::optional<QuerySet> queries;
+  if (!opt.queries.empty()) {
+    queries = load_query_set(opt.queries);
+    ClassifyOptions options;
+    options.void_to_second_best = !opt.no_void_rule;
+    classify_results(map, *queries, results, options,
+                     opt.ignore_model_id ? ModelIdCheck::kIgnore : ModelIdCheck::kRequireMatch);
+  }
   fmt::print("{} of {} semantic voxels{}:\n", results.size(), map.num_index_cells(),
              opt.top_k ? fmt::format(" (top {})", opt.top_k) : std::string());
-  fmt::print("| rank | x | y | z | cosine | observations |\n|---:|---:|---:|---:|---:|---:|\n");
-  for (std::size_t i = 0; i < results.size() && i < 10; ++i)
-    fmt::print("| {} | {:.2f} | {:.2f} | {:.2f} | {:.4f} | {} |\n", i + 1, results[i].position_world.x(),
-               results[i].position_world.y(), results[i].position_world.z(), results[i].score, results[i].count);
+  fmt::print("| rank | x | y | z | cosine | observations |{}\n|---:|---:|---:|---:|---:|---:|{}\n",
+             queries ? " class | confidence |" : "", queries ? "---|---:|" : "");
+  for (std::size_t i = 0; i < results.size() && i < 10; ++i) {
+    const ScoredCell& r = results[i];
+    fmt::print("| {} | {:.2f} | {:.2f} | {:.2f} | {:.4f} | {} |", i + 1, r.position_world.x(), r.position_world.y(),
+               r.position_world.z(), r.score, r.count);
+    if (queries) fmt::print(" {} | {:.4f} |", class_text(*queries, r), r.confidence);
+    fmt::print("\n");
+  }
   float lo = 1, hi = -1;
   for (const ScoredCell& r : results) lo = std::min(lo, r.score), hi = std::max(hi, r.score);
   std::vector<std::string> outputs;
   for (const std::string& o : {opt.output, opt.ply, opt.png})
     if (!o.empty()) outputs.push_back(o);
-  for (const std::string& output : outputs) write_results(output_format(output), output, opt, map, results, lo, hi);
+  for (const std::string& output : outputs)
+    write_results(output_format(output), output, opt, map, results, queries ? &*queries : nullptr, lo, hi);
 }
 
 void write_results(const std::string& format, const std::string& output, const Options& opt, const SemanticMap& map,
-                   const std::vector<ScoredCell>& results, float lo, float hi) {
+                   const std::vector<ScoredCell>& results, const QuerySet* queries, float lo, float hi) {
   if (format == ".csv") {
-    CsvWriter csv({"rank", "x", "y", "z", "score", "count"});
+    CsvWriter csv = queries ? CsvWriter({"rank", "x", "y", "z", "score", "count", "weight", "spread", "class", "confidence"})
+                            : CsvWriter({"rank", "x", "y", "z", "score", "count", "weight", "spread"});
     for (std::size_t i = 0; i < results.size(); ++i) {
-      const Vec3d& p = results[i].position_world;
-      csv.row({fmt::format("{}", i + 1), fmt::format("{:.3f}", p.x()), fmt::format("{:.3f}", p.y()),
-               fmt::format("{:.3f}", p.z()), fmt::format("{:.6f}", results[i].score),
-               fmt::format("{}", results[i].count)});
+      const ScoredCell& r = results[i];
+      const std::string rank = fmt::format("{}", i + 1), x = fmt::format("{:.3f}", r.position_world.x()),
+                        y = fmt::format("{:.3f}", r.position_world.y()), z = fmt::format("{:.3f}", r.position_world.z()),
+                        score = fmt::format("{:.6f}", r.score), count = fmt::format("{}", r.count),
+                        weight = weight_text(r.stats), spread = spread_text(r.stats);
+      if (queries)
+        csv.row({rank, x, y, z, score, count, weight, spread, class_text(*queries, r), fmt::format("{:.4f}", r.confidence)});
+      else
+        csv.row({rank, x, y, z, score, count, weight, spread});
     }
     write_output_file(output, csv.text());
     fmt::print("CSV  {}: {} rows\n", output, results.size());
   } else if (format == ".png") {
     std::vector<ClassifiedCell> cells;
-    for (const ScoredCell& c : results) cells.push_back({c.cell, c.position_world, c.count, {0, c.score, 0}});
+    for (const ScoredCell& c : results) cells.push_back({c.cell, c.position_world, c.count, {0, c.score, 0}, c.stats});
     sort_by_cell(cells);
     const BirdsEyeImage image = write_score_picture(output, map, cells, "cosine similarity", lo, hi);
     fmt::print("PNG  {} (+ .yaml): heat map of the {} results from above, {}x{} px, colour bar {:.3f}..{:.3f}\n",
@@ -268,7 +300,8 @@ void add(CLI::App& root) {
   cmd->add_option("map", opt->map, "Map file (.svdb)")->required()->check(CLI::ExistingFile);
   cmd->add_option("--text", opt->text, "A text query (repeatable: the terms add up)");
   cmd->add_option("--not", opt->not_text, "A text to subtract (repeatable)");
-  cmd->add_option("--queries", opt->queries, "Query set file, for --class / --not-class and to classify --at points")
+  cmd->add_option("--queries", opt->queries, "Query set file, for --class / --not-class, and to give every answer (--at points or similarity "
+                  "results) its class and confidence")
       ->check(CLI::ExistingFile);
   cmd->add_option("--class", opt->classes, "A class of --queries as the query (repeatable)");
   cmd->add_option("--not-class", opt->not_classes, "A class of --queries to subtract (repeatable)");
@@ -304,7 +337,8 @@ void add(CLI::App& root) {
                   "a UTF-8 byte order mark and blank lines are skipped, any other bad line is an error naming it")
       ->check(CLI::ExistingFile);
   cmd->add_option("-o,--output", opt->output,
-                  "Write the results; the format follows the extension: .csv (similarity: rank,x,y,z,score,count; "
+                  "Write the results; the format follows the extension: .csv (similarity: rank,x,y,z,score,count,weight,spread, "
+                  "and class,confidence with --queries; "
                   "points: x,y,z,found,cell_x,cell_y,cell_z,count,class,score,margin,weight,spread,confidence; spread empty for "
                   "maps before format 3), .ply (voxels coloured by score), "
                   ".png (heat map from above with a colour bar, and a map_server .yaml beside it), .html (3D view)");

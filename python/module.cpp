@@ -112,6 +112,41 @@ py::tuple search(const SemanticMap& map, const F32& query, std::size_t top_k, st
   return py::make_tuple(positions, scores, counts);
 }
 
+// search with what the map knows of each result: weights, spreads (S/W), and with a query set the
+// class (-1: none) and its confidence, as classify and at give them.
+py::dict search_details(const SemanticMap& map, const F32& query, std::size_t top_k, std::optional<float> threshold,
+                        const QuerySet* queries, bool void_rule, bool ignore_model_id) {
+  SearchOptions o;
+  o.top_k = top_k;
+  if (threshold) o.threshold = *threshold;
+  auto found = similarity_search(map, {query.data(), static_cast<std::size_t>(query.size())}, o);
+  if (queries) {
+    ClassifyOptions c;
+    c.void_to_second_best = void_rule;
+    classify_results(map, *queries, found, c, ignore_model_id ? ModelIdCheck::kIgnore : ModelIdCheck::kRequireMatch);
+  }
+  const auto n = static_cast<py::ssize_t>(found.size());
+  py::array_t<double> positions({n, py::ssize_t{3}});
+  py::array_t<float> scores(n), weights(n), spreads(n), confidences(n);
+  py::array_t<uint32_t> counts(n);
+  py::array_t<int32_t> classes(n);
+  auto p = positions.mutable_unchecked<2>();
+  for (py::ssize_t i = 0; i < n; ++i) {
+    const ScoredCell& r = found[static_cast<std::size_t>(i)];
+    for (int k = 0; k < 3; ++k) p(i, k) = r.position_world[k];
+    scores.mutable_at(i) = r.score;
+    counts.mutable_at(i) = r.count;
+    weights.mutable_at(i) = r.stats.weight;
+    spreads.mutable_at(i) = spread_per_weight(r.stats);
+    classes.mutable_at(i) = r.match ? r.match->class_index : kNoClass;
+    confidences.mutable_at(i) = r.confidence;
+  }
+  py::dict d;
+  d["positions"] = positions, d["scores"] = scores, d["counts"] = counts, d["weights"] = weights, d["spreads"] = spreads;
+  if (queries) d["classes"] = classes, d["confidences"] = confidences, d["names"] = queries->names;
+  return d;
+}
+
 py::dict classify(const SemanticMap& map, const QuerySet& queries, bool void_rule, bool ignore_model_id) {
   ClassifyOptions o;
   o.void_to_second_best = void_rule;
@@ -271,6 +306,12 @@ PYBIND11_MODULE(slamvdb, m) {
            "Centres of the occupied world cells (all submaps combined), N x 3")
       .def("search", &search, py::arg("query"), py::arg("top_k") = 100, py::arg("threshold") = py::none(),
            "Cosine similarity with a query vector: (positions, scores, counts), best first")
+      .def("search_details", &search_details, py::arg("query"), py::arg("top_k") = 100,
+           py::arg("threshold") = py::none(), py::arg("queries") = nullptr, py::arg("void_rule") = true,
+           py::arg("ignore_model_id") = false,
+           "search with what the map knows of each result, best first: dict of positions, scores, counts, weights, "
+           "spreads (S/W; NaN where not known), and with queries also classes (-1: none), confidences (as classify "
+           "gives them), names")
       .def("classify", &classify, py::arg("queries"), py::arg("void_rule") = true, py::arg("ignore_model_id") = false,
            "Label every semantic voxel with its most similar query (void takes its second-best with void_rule): "
            "dict of positions, classes, scores, margins, confidences (0..1: class margin x n/(n+2) for n views, as "

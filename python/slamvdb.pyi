@@ -72,6 +72,18 @@ class Map:
         self, query: npt.ArrayLike, top_k: int = 100, threshold: Optional[float] = None
     ) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float32], npt.NDArray[np.uint32]]:
         """Cosine similarity with a query vector: (positions, scores, counts), best first."""
+    def search_details(
+        self,
+        query: npt.ArrayLike,
+        top_k: int = 100,
+        threshold: Optional[float] = None,
+        queries: Optional[QuerySet] = None,
+        void_rule: bool = True,
+        ignore_model_id: bool = False,
+    ) -> dict[str, Any]:
+        """search with what the map knows of each result, best first: dict of positions, scores,
+        counts, weights, spreads (S/W; NaN where not known), and with queries also classes (-1:
+        none), confidences (0..1, as classify gives them), names."""
     def classify(self, queries: QuerySet, void_rule: bool = True, ignore_model_id: bool = False) -> dict[str, Any]:
         """Label every semantic voxel with its most similar query (void takes its second-best with
         void_rule): dict of positions, classes, scores, margins, confidences (0..1), counts, names."""

@@ -129,3 +129,16 @@ def test_classify_with_a_query_set_file(tmp_path):
     # Confidence: margin 1 (cosine 1 against 0), damped by n / (n + 2), no spread between identical views.
     counts = result["counts"].astype(np.float32)
     assert np.allclose(result["confidences"], counts / (counts + 2), atol=1e-3)
+
+    # Search results carry the same: weights, spreads, and with the query set class and confidence.
+    q = np.zeros(16, dtype=np.float32)
+    q[3] = 1.0
+    found = m.search_details(q, top_k=20, queries=queries)
+    assert found["names"] == queries.names and len(found["positions"]) == 20
+    assert np.array_equal(found["weights"], found["counts"].astype(np.float32))
+    assert (found["classes"] == 0).all()
+    by_position = {tuple(p): c for p, c in zip(result["positions"], result["confidences"])}
+    for p, c in zip(found["positions"], found["confidences"]):
+        assert c == pytest.approx(by_position[tuple(p)], abs=1e-4)
+    plain = m.search_details(q, top_k=20)
+    assert "classes" not in plain and np.array_equal(plain["scores"], found["scores"])

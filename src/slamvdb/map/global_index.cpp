@@ -111,11 +111,11 @@ IndexedVoxel GlobalIndex::read(std::size_t i, float* scratch) const {
   v.position_world = center_of_key(c.key, cell_size_);
   v.entries = static_cast<uint32_t>(c.refs.size());
   if (c.refs.size() == 1 || single_view_) {
-    uint64_t count = 0;
-    for (const EntryRef& r : c.refs) count += bindings_[r.submap].layer->count_of(r.handle);
+    // Count, weight, statistics and embedding all of the one entry read (single_view: the other
+    // entries' views were discarded, so their counts would overstate the observations behind it).
     const EntryRef& r = c.refs[c.refs.size() == 1 ? 0 : best_ref(c)];
     const SemanticLayer& layer = *bindings_[r.submap].layer;
-    v.count = static_cast<uint32_t>(std::min<uint64_t>(count, UINT32_MAX));
+    v.count = layer.count_of(r.handle);
     v.weight = layer.weight_of(r.handle);
     v.embedding = layer.embedding_of(r.handle);
     return v;
@@ -167,6 +167,14 @@ GlobalIndex::Parts GlobalIndex::parts(std::size_t i, float* scratch) const {
     p.stats = statistics(i, scratch);
     return p;
   }
+  if (c.refs.size() == 1 || single_view_) {  // one entry, as read() reads it
+    const EntryRef& r = c.refs[c.refs.size() == 1 ? 0 : best_ref(c)];
+    const SemanticLayer& layer = *bindings_[r.submap].layer;
+    p.count = layer.count_of(r.handle);
+    p.embedding.view[0] = layer.embedding_of(r.handle);
+    p.stats = layer.statistics_of(r.handle);
+    return p;
+  }
   uint64_t total = 0;
   double weight = 0;
   for (std::size_t k = 0; k < c.refs.size(); ++k) {
@@ -175,12 +183,6 @@ GlobalIndex::Parts GlobalIndex::parts(std::size_t i, float* scratch) const {
     weight += layer.weight_of(c.refs[k].handle);
   }
   p.count = static_cast<uint32_t>(std::min<uint64_t>(total, UINT32_MAX));
-  if (c.refs.size() == 1 || single_view_) {
-    const EntryRef& r = c.refs[c.refs.size() == 1 ? 0 : best_ref(c)];
-    p.embedding.view[0] = bindings_[r.submap].layer->embedding_of(r.handle);
-    p.stats = bindings_[r.submap].layer->statistics_of(r.handle);
-    return p;
-  }
   p.embedding.n = 2;
   VoxelStatistics s[2];
   for (std::size_t k = 0; k < 2; ++k) {

@@ -24,9 +24,11 @@ namespace slamvdb {
 struct IndexedVoxel {
   IndexCellKey cell;
   Vec3d position_world;     // the cell centre
-  uint32_t count = 0;       // summed observation count of the entries in the cell
+  // Summed observation count and weight (= count under the paper's rule) of the entries in the
+  // cell; under single_view those of the one entry read (the views behind its embedding).
+  uint32_t count = 0;
   uint32_t entries = 0;     // how many submap entries the cell holds
-  float weight = 0.f;       // summed observation weight (= count under the paper's rule)
+  float weight = 0.f;
   EmbeddingView embedding;  // their weighted mean (a view of the submap's storage when one)
 };
 
@@ -38,7 +40,7 @@ class GlobalIndex {
   };
 
   // single_view: a cell of several entries reads as its entry of the largest weight, not their mean
-  // (SemanticParams::single_view).
+  // (SemanticParams::single_view): its embedding, count, weight and statistics all that entry's.
   explicit GlobalIndex(double cell_size, int dim, bool single_view = false);
 
   // Binds a submap's semantic layer (the layer must stay at its address while bound) and bins

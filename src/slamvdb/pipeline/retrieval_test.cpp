@@ -90,11 +90,23 @@ TEST_F(MappingPipelineTest, CompositeTextQueriesAndPointLookUps) {
   std::vector<Vec3d> points;
   for (const ScoredCell& c : found) points.push_back(c.position_world);
   const auto answers = query_points(map, points, &queries);
+  // Search results carry what a point look-up gives at their cell: statistics, and with a query
+  // set the class and its confidence.
+  std::vector<ScoredCell> classified = found;
+  classify_results(map, queries, classified);
   std::size_t terrain = 0;
   for (std::size_t i = 0; i < answers.size(); ++i) {
     ASSERT_TRUE(answers[i].found);
     EXPECT_EQ(answers[i].cell, found[i].cell);
     EXPECT_EQ(answers[i].count, found[i].count);
+    EXPECT_FALSE(found[i].match);
+    EXPECT_FLOAT_EQ(found[i].stats.weight, answers[i].stats.weight);
+    EXPECT_NEAR(found[i].stats.spread, answers[i].stats.spread, 1e-3f * (1.f + answers[i].stats.spread));
+    ASSERT_TRUE(classified[i].match);
+    if (answers[i].match->margin > 1e-3f) {
+      EXPECT_EQ(classified[i].match->class_index, answers[i].match->class_index);
+    }
+    EXPECT_NEAR(classified[i].confidence, answers[i].confidence, 1e-3f);
     terrain += answers[i].match->class_index == rough;
     EXPECT_NE(answers[i].match->class_index, obstacle);
   }

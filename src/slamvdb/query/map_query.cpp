@@ -84,7 +84,7 @@ std::vector<ScoredCell> similarity_search(const SemanticMap& map, std::span<cons
         const float score = dot / std::sqrt(norm2);
         if (!(score >= options.threshold)) continue;
         const IndexCellKey& cell = index.key(i);
-        local.best.offer({cell, center_of_key(cell, index.cell_size()), score, v.count});
+        local.best.offer({cell, center_of_key(cell, index.cell_size()), score, v.count, v.stats, std::nullopt, 0.f});
       }
     });
     for (Local& local : locals) local.best.drain_into(out);
@@ -92,6 +92,25 @@ std::vector<ScoredCell> similarity_search(const SemanticMap& map, std::span<cons
   std::sort(out.begin(), out.end(), better);
   if (options.top_k && out.size() > options.top_k) out.resize(options.top_k);
   return out;
+}
+
+void classify_results(const SemanticMap& map, const QuerySet& queries, std::span<ScoredCell> results,
+                      const ClassifyOptions& options, ModelIdCheck model_check) {
+  check_compatible(queries, map.params().semantic.dim, map.info().model_id, model_check);
+  const QueryClassifier classifier(queries, options);
+  std::vector<float> scratch(static_cast<std::size_t>(map.params().semantic.dim));
+  map.read_index([&](const GlobalIndex& index) {
+    for (ScoredCell& r : results) {
+      const auto at = index.find(r.cell);
+      if (!at) throw Error("a search result is not a cell of this map");
+      // The cell read as classify_map reads it, so that the class and confidence are the same.
+      const GlobalIndex::Parts v = index.parts(*at, scratch.data());
+      QueryMatch m;
+      classifier.classify_combined(&v.embedding, 1, &m);
+      r.match = m;
+      r.confidence = voxel_confidence(m, v.count, v.stats);
+    }
+  });
 }
 
 std::vector<ClassifiedCell> classify_map(const SemanticMap& map, const QuerySet& queries,

@@ -15,12 +15,15 @@
 
 namespace slamvdb {
 
-// One cell of the index with its cosine similarity to a query.
+// One cell of the index with its cosine similarity to a query, and what the map knows of it.
 struct ScoredCell {
   IndexCellKey cell;
   Vec3d position_world;  // cell centre
   float score = 0.f;     // cosine similarity, -1..1
   uint32_t count = 0;    // observations fused into the cell
+  VoxelStatistics stats{};  // its observations' weight and spread (spread NaN: map before format 3)
+  std::optional<QueryMatch> match;  // its class against a query set (classify_results)
+  float confidence = 0.f;           // voxel_confidence of the match (with a query set)
 };
 
 struct SearchOptions {
@@ -33,6 +36,12 @@ struct SearchOptions {
 // Throws Error on a query of the wrong dimension or a zero / non-finite query.
 std::vector<ScoredCell> similarity_search(const SemanticMap& map, std::span<const float> query,
                                           const SearchOptions& options = {});
+
+// Gives each result its best class of `queries` and that class's voxel_confidence, as query_points
+// and classify_map would at the same cell (results of similarity_search on the same map). Checks
+// the query set against the map as classify_map does.
+void classify_results(const SemanticMap& map, const QuerySet& queries, std::span<ScoredCell> results,
+                      const ClassifyOptions& options = {}, ModelIdCheck model_check = ModelIdCheck::kRequireMatch);
 
 // One cell of the index classified against a query set.
 struct ClassifiedCell {
