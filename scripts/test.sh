@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Every check, one stage after the other; CI runs exactly this (.ci/run), from a clean clone:
 #   setup          scripts/setup.sh: installs, builds in Release (build/, a unity build)
-#   release tests  every test (unit, integration, CLI, Python, viewer) with CTest
+#   release tests  scripts/test_release.sh: every test (unit, integration, CLI, Python, viewer)
 #   tsan           scripts/test_tsan.sh: the concurrency tests (map, streaming mapper) under TSan
 #   asan build     scripts/build_asan.sh: the test suite under ASan + UBSan (GCC, build-asan/)
 #   asan tests     scripts/test_asan.sh: that suite (any report fails the test)
@@ -31,7 +31,7 @@ print_stage_times() {
 trap print_stage_times EXIT
 
 stage setup scripts/setup.sh
-stage "release tests" ctest --test-dir build --output-on-failure -j"$(nproc)" --timeout 900
+stage "release tests" scripts/test_release.sh
 stage tsan scripts/test_tsan.sh
 if [ "${SLAMVDB_SANITIZERS:-1}" = 1 ]; then
   stage "asan build" scripts/build_asan.sh

@@ -4,10 +4,8 @@
 # undefined behaviour, a leak) aborts the process that triggered it, so the run fails.
 #   scripts/test_asan.sh              the suite in gtest shards, one running per core (CI)
 #   scripts/test_asan.sh -R REGEX     through CTest instead, one process per test (to replay one)
-# The suite runs as a few gtest shards, not one process per test as under CTest: a suite's
-# SetUpTestSuite (MappingPipelineTest synthesises a sequence, ImageBaselineTest maps one) then runs
-# once per shard instead of once per test, and under ASan that set-up was most of the suite's time;
-# the suites with the heaviest set-ups run whole, as jobs of their own, so theirs runs once. The Release suite (scripts/test.sh) keeps one process per test.
+# The suite runs as parallel gtest jobs (scripts/gtest_jobs.sh: heavy-set-up suites whole, the rest
+# in shards), not one process per test as under CTest, so that a suite's set-up is not repeated.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 scripts/build_asan.sh
@@ -26,46 +24,9 @@ fi
 
 # Pure speed checks, meaningless under -O1 instrumentation (their code runs under ASan in the other
 # tests of the same suites; their time bounds are checked by the Release suite).
-speed_checks="ClipTokenizer.ConstructionIsFast:SimulatedEncoders.EncodesAFullSizeFrameQuickly"
-# Suites whose set-up (SetUpTestSuite, or inputs made once on first use) is heavy under ASan run
-# whole, each as one job, instead of in every shard that draws one of their tests: gtest shards
-# deal tests out one by one, so the set-up ran once per shard. Measured with the sanitizer scale on
-# this 2-core machine (`--gtest_filter` of one test, wall time minus the test's own time):
-# HonestAccuracyTest ~146 s (was paid in 4 shards), MappingPipelineTest ~52 s (6 shards),
-# ImageBaselineTest ~13 s (2 shards), RecordingCommands' recordings ~40 s (on first use, 6 shards).
-whole_suites=${ASAN_WHOLE_SUITES-"HonestAccuracyTest MappingPipelineTest RecordingCommands ImageBaselineTest"}
-if [ -n "${GTEST_FILTER:-}" ]; then whole_suites=""; fi  # a filter of one's own: plain shards
-shard_filter=${GTEST_FILTER:-"-$speed_checks$(for s in $whole_suites; do printf ':%s.*' "$s"; done)"}
-# Three shards per core, taken by one worker per core as the previous one ends: with one shard per
-# core the shard that drew the heaviest tests ran 709 s while the other was done at 447 s.
-shards=${ASAN_SHARDS:-$((3 * $(nproc)))}
-logs=build-asan/asan-logs
-rm -rf $logs
-mkdir -p $logs
-# One job: a shard (a number) or a whole suite (its name).
-run_asan_job() {
-  local job=$1 shards=$2 logs=$3 shard_filter=$4 speed_checks=$5 log
-  log=$logs/shard-$job.log
-  if [[ $job =~ ^[0-9]+$ ]]; then
-    GTEST_FILTER=$shard_filter GTEST_TOTAL_SHARDS=$shards GTEST_SHARD_INDEX=$job timeout 2400 \
-      build-asan/slamvdb_tests > "$log" 2>&1  # each test's time is in the log
-  else
-    GTEST_FILTER="$job.*-$speed_checks" timeout 2400 build-asan/slamvdb_tests > "$log" 2>&1
-  fi
-  if [ $? -eq 0 ]; then
-    echo "asan $job: $(grep -E '^\[  PASSED  \]' "$log")"
-  else
-    echo "asan $job FAILED ($log):"
-    grep -E '^\[  FAILED  \]|ERROR: AddressSanitizer|ERROR: LeakSanitizer|runtime error|SUMMARY' "$log" | head -40
-    tail -n 60 "$log"
-    return 1
-  fi
-}
-export -f run_asan_job
 status=0
-# The whole suites first (the longest jobs), then the shards.
-{ for s in $whole_suites; do echo "$s"; done; seq 0 $((shards - 1)); } |
-  xargs -P "$(nproc)" -I{} bash -c "run_asan_job {} $shards $logs '$shard_filter' '$speed_checks'" || status=1
+SKIP_TESTS="ClipTokenizer.ConstructionIsFast:SimulatedEncoders.EncodesAFullSizeFrameQuickly" \
+  scripts/gtest_jobs.sh build-asan/slamvdb_tests build-asan/asan-logs asan || status=1
 # The two tests outside gtest (the map core alone, and what it links).
 ctest --test-dir build-asan --output-on-failure -R '^MapCore\.' || status=1
 exit $status
