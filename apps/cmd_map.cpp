@@ -328,6 +328,14 @@ void add(CLI::App& root) {
                 "pass instead");
   cmd->add_flag("--no-loop-closure", [opt](std::int64_t n) { opt->tracking.loop_closure = n <= 0; },
                 "With --odometry: odometry only");
+  cmd->add_flag("--no-deskew",
+                [opt](std::int64_t n) {
+                  opt->pipeline.deskew = n <= 0;
+                  opt->tracking.odometry.deskew = n <= 0;
+                },
+                "Fuse scans with per-point times as read, without moving each point to where the sensor was at the "
+                "scan's pose (by default they are deskewed with the poses' motion, with --odometry the odometry's "
+                "trajectory); the odometry does not deskew either");
   cmd->add_option("--pose-format", opt->pose_format, "Format of --poses: auto (from the first row), kitti or tum")
       ->capture_default_str()
       ->check(CLI::IsMember({"auto", "kitti", "tum"}));

@@ -176,6 +176,14 @@ void add(CLI::App& root) {
   add_feature_options(cmd, opt->features, false, false, /*with_none=*/true);
   cmd->add_flag("--no-loop-closure", [opt](std::int64_t n) { opt->tracking.loop_closure = n <= 0; },
                 "Odometry only (no submap moves or merges)");
+  cmd->add_flag("--no-deskew",
+                [opt](std::int64_t n) {
+                  opt->pipeline.deskew = n <= 0;
+                  opt->tracking.odometry.deskew = n <= 0;
+                },
+                "Fuse scans with per-point times as read, without moving each point to where the sensor was at the "
+                "scan's pose (by default they are deskewed with the odometry's motion estimate); the odometry does not "
+                "deskew either");
   cmd->add_option("--sim-odometry-drift", opt->tracking.simulated_drift_deg_per_100m,
                   "SIMULATED odometry drift: degrees of heading error added per 100 m travelled, to see loop closure "
                   "correct a drive whose odometry hardly drifts")

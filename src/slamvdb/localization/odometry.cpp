@@ -102,8 +102,10 @@ OdometryResult LidarOdometry::register_scan(double stamp, const std::vector<Vec3
                             points.size(), points_sensor.size(), stats.non_finite, stats.out_of_range,
                             config_.min_range, config_.max_range, config_.min_points));
 
-  if (point_times && config_.deskew && previous_stamp_)
-    points = deskew(points, normalise_times(times), previous_pose_.inverse() * last_pose_);
+  if (point_times && config_.deskew && previous_stamp_) {
+    result.sweep = sweep_motion(times, previous_pose_.inverse() * last_pose_);
+    points = deskew(points, times, *result.sweep);
+  }
   const std::vector<Vec3d> frame = voxel_downsample(points, 0.5 * config_.voxel_size);
   const std::vector<Vec3d> source = voxel_downsample(frame, 1.5 * config_.voxel_size);
   result.registration_points = source.size();

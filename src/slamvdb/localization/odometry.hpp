@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "slamvdb/core/types.hpp"
+#include "slamvdb/localization/preprocessing.hpp"
 #include "slamvdb/localization/voxel_hash_map.hpp"
 
 namespace slamvdb::localization {
@@ -53,6 +54,9 @@ struct OdometryResult {
   int iterations = 0;
   double threshold = 0.0;        // correspondence threshold used (metres)
   double inlier_fraction = 0.0;  // after alignment
+  // When the scan was deskewed: the motion it was deskewed with (the pose refers to mid-sweep), so
+  // that the mapper can fuse the whole scan deskewed the same way.
+  std::optional<SweepMotion> sweep;
 };
 
 class LidarOdometry {

@@ -43,6 +43,7 @@ Pose LidarTracker::track(double stamp, const std::vector<Vec3f>& points, const s
                          const std::string& name) {
   const auto start = std::chrono::steady_clock::now();
   localization::OdometryResult r = odometry_.register_scan(stamp, points, point_times);
+  last_sweep_ = r.sweep;
   if (options_.simulated_drift_deg_per_100m != 0.0) {
     // The motion since the last scan, turned in proportion to its length, continues the drifted
     // trajectory (the odometry itself keeps tracking in its own frame).

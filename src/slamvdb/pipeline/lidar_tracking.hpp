@@ -6,6 +6,7 @@
 #include <functional>
 #include <map>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -61,6 +62,9 @@ class LidarTracker {
   // gives the scans by reason (empty, too few valid points, registration failed, and the
   // `unreadable` ones the caller could not load) and what a scan needs.
   void require_registered(const std::string& input, std::size_t unreadable = 0) const;
+  // The motion the last scan was deskewed with (its pose refers to mid-sweep), or nullopt when it
+  // was not (no per-point times, deskewing off, or no motion seen yet: the first two scans).
+  const std::optional<localization::SweepMotion>& last_sweep() const { return last_sweep_; }
   const TrackingResult& result() const { return result_; }
   TrackingResult take_result() { return std::move(result_); }
 
@@ -70,6 +74,7 @@ class LidarTracker {
   TrackingResult result_;
   Pose last_odometry_ = Pose::Identity();  // the odometry's own last pose (before simulated drift)
   int consecutive_failures_ = 0;
+  std::optional<localization::SweepMotion> last_sweep_;
 };
 
 // progress(done, total, result so far) after every scan.

@@ -6,6 +6,7 @@
 #include <thread>
 
 #include "slamvdb/core/error.hpp"
+#include "slamvdb/pipeline/scan_deskew.hpp"
 
 namespace slamvdb {
 
@@ -65,7 +66,7 @@ SemanticMap continue_map(SemanticMap start, const SensorInput& input, FeatureSou
   // need be): the mapper never waits for a pose this thread holds back, which with a full queue
   // would wait for ever (a trajectory starting after the data, or with a gap longer than the
   // queue). The end of the poses is announced with the last one.
-  std::size_t pi = 0, scans = 0;
+  std::size_t pi = 0, scans = 0, with_times = 0, deskewed = 0;
   const auto give_pose = [&] {
     mapper.add_pose(poses.stamps()[pi], poses.poses()[pi]);
     if (++pi == poses.size()) mapper.end_poses();  // what comes after the last pose needs no wait
@@ -97,6 +98,10 @@ SemanticMap continue_map(SemanticMap start, const SensorInput& input, FeatureSou
     give_poses_covering(frame.stamp);
     if (frame.kind == SensorFrame::Kind::kScan) {
       if (frame.error.empty()) {
+        if (!frame.point_times.empty()) {
+          ++with_times;
+          deskewed += options.deskew && deskew_with_trajectory(poses, frame.stamp, frame.points, frame.point_times);
+        }
         mapper.add_scan(frame.stamp, std::move(frame.points));
       } else {
         mapper.add_unreadable_scan(frame.error);
@@ -114,6 +119,9 @@ SemanticMap continue_map(SemanticMap start, const SensorInput& input, FeatureSou
   SemanticMap map = mapper.finish();
   report = mapper.report();
   report.input_skipped = stream->skipped();
+  report.scans_with_point_times = with_times;
+  report.scans_deskewed = deskewed;
+  if (options.deskew) report.deskew_motion = "the poses, interpolated at each point's time";
   report.seconds_total = std::chrono::duration<double>(Clock::now() - t_start).count();
   if (options.realtime) report.realtime_seconds_behind = std::max(0.0, report.seconds_total - (last_frame - t0));
   return map;

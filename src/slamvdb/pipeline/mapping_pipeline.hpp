@@ -23,6 +23,9 @@ struct PipelineOptions {
   // mapper takes it; frames that find the queue full are then dropped and counted.
   bool realtime = false;
   std::size_t max_scans = 0;  // 0: all
+  // Scans with per-point times are deskewed before fusion (scan_deskew.hpp): with the poses'
+  // motion here, with the odometry's in slam (which deskews when its odometry does).
+  bool deskew = true;
   // T_world_lidar (e.g. a pose file); null: the sequence's ground truth.
   const Trajectory* poses = nullptr;
   SubmapStore* store = nullptr;  // where finished submaps go as they finish (may be null)

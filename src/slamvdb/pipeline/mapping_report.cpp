@@ -15,6 +15,15 @@ std::size_t PipelineReport::sensor_items_dropped() const {
          inference.dropped_queue_full;
 }
 
+std::string PipelineReport::deskew_summary() const {
+  if (scans_with_point_times == 0) return "deskewing: no scan has per-point times (scans fused as read)";
+  if (deskew_motion.empty())
+    return fmt::format("deskewing: off; {} scans with per-point times fused as read", scans_with_point_times);
+  return fmt::format("deskewing: {} of {} scans with per-point times deskewed, motion from {}{}", scans_deskewed,
+                     scans_with_point_times, deskew_motion,
+                     scans_deskewed < scans_with_point_times ? " (the others fused as read)" : "");
+}
+
 std::string PipelineReport::summary() const {
   std::string s = fmt::format(
       "scans: {} integrated of {} ({} unreadable, {} outside the pose range, {} out of order, {} duplicate stamps, "
@@ -46,6 +55,8 @@ std::string PipelineReport::summary() const {
                        : fmt::format(", at most {} in memory at once", peak_submaps_in_memory),
       peak_queued_items, peak_queued_bytes / 1e6, seconds_total, seconds_scans, seconds_fusion,
       inference.busy_seconds);
+  s += '\n';
+  s += deskew_summary();
   if (realtime_seconds_behind >= 0)
     s += fmt::format("\nreal time: kept up with {} of {} scans and {} of {} images; done {:.2f} s after the last frame",
                      scans_integrated, scans_total, images_fused, images_total, realtime_seconds_behind);

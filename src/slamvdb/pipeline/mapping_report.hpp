@@ -38,6 +38,10 @@ struct PipelineReport {
   std::size_t submaps_reloaded = 0;  // times one was read back
   std::size_t peak_submaps_in_memory = 0, submaps_in_memory_at_end = 0;
   std::size_t peak_queued_items = 0, peak_queued_bytes = 0;
+  // Deskewing (scan_deskew.hpp): scans read with per-point times, and those deskewed with the
+  // motion `deskew_motion` names (empty: deskewing was off).
+  std::size_t scans_with_point_times = 0, scans_deskewed = 0;
+  std::string deskew_motion;
   ScanIntegrationStats points;
   InferenceStats inference;
   FusionStats fusion;  // summed over images
@@ -56,6 +60,7 @@ struct PipelineReport {
   void add_problem(std::string line);
   std::size_t sensor_items_dropped() const;
   std::string summary() const;
+  std::string deskew_summary() const;  // one line, also in summary()
 };
 
 }  // namespace slamvdb

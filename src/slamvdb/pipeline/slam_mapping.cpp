@@ -10,6 +10,7 @@
 
 #include "slamvdb/core/error.hpp"
 #include "slamvdb/io/scan_source.hpp"
+#include "slamvdb/localization/preprocessing.hpp"
 #include "slamvdb/pipeline/pose_source.hpp"
 
 namespace slamvdb {
@@ -66,7 +67,7 @@ SlamMappingResult map_with_own_poses(const SensorInput& input, FeatureSource* fe
   // poses): given before it, they would wait in the mapper's queue for a pose only this thread
   // can give, and a run of unreadable scans would fill the queue and stop this thread for good.
   // They wait here meanwhile (the images between two scans).
-  std::size_t si = 0, unreadable = 0;
+  std::size_t si = 0, unreadable = 0, with_times = 0, deskewed = 0;
   double last_scan_stamp = -std::numeric_limits<double>::infinity();
   std::deque<ImageRecord> images;
   const auto give_images_before = [&](double stamp) {
@@ -98,6 +99,16 @@ SlamMappingResult map_with_own_poses(const SensorInput& input, FeatureSource* fe
     ScanPoints scan{std::move(frame.points), std::move(frame.point_times)};
     const Pose T_odom_sensor =
         tracker.track(rec.stamp, scan.points, scan.time.empty() ? nullptr : &scan.time, rec.points.string());
+    if (!scan.time.empty()) {
+      ++with_times;
+      // The whole scan deskewed with the motion the odometry deskewed its own points with, into
+      // the mid-sweep frame its pose refers to.
+      if (options.pipeline.deskew && tracker.last_sweep()) {
+        const localization::SweepMotion& sweep = *tracker.last_sweep();
+        scan.points = localization::deskew_scan(scan.points, scan.time, [&](double t) { return sweep.T_mid_sensor(t); });
+        ++deskewed;
+      }
+    }
     const auto* closer = tracker.result().loop_closer.get();
     if (closer && (closer->optimizations() != optimizations_seen || closer->loops().size() != loops_seen)) {
       // The pose graph changed: move every submap to the new correction once the mapper holds
@@ -144,6 +155,10 @@ SlamMappingResult map_with_own_poses(const SensorInput& input, FeatureSource* fe
   SemanticMap map = mapper.finish();
   PipelineReport report = mapper.report();
   report.input_skipped = stream->skipped();
+  report.scans_with_point_times = with_times;
+  report.scans_deskewed = deskewed;
+  if (options.pipeline.deskew && options.tracking.odometry.deskew)
+    report.deskew_motion = "the odometry's constant-velocity estimate (none yet for the first two scans)";
   report.seconds_total = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
   return SlamMappingResult{std::move(map), std::move(report), tracker.take_result(), corrections.report(), G};
 }

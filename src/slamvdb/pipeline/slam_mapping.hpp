@@ -14,7 +14,9 @@
 namespace slamvdb {
 
 struct SlamMappingOptions {
-  PipelineOptions pipeline;  // poses and realtime are not used; store and unload_radius as in map
+  // poses and realtime are not used; store and unload_radius as in map; deskew: the map fuses the
+  // scans deskewed as the odometry deskews them (so only when tracking.odometry.deskew too)
+  PipelineOptions pipeline;
   TrackingOptions tracking;
   MergeOptions merge;
 };
