@@ -187,6 +187,7 @@ void run(Options opt, const std::string& config) {
   if (own_poses)
     for (const auto& line : own_poses->problems()) spdlog::warn("{}", escape_control(line));
   opt.pipeline.poses = &poses;
+  if (own_poses) opt.pipeline.sweeps = &own_poses->sweeps();  // deskewed as the odometry deskewed them
   fmt::print("poses: {} ({} poses)\n", pose_source->describe(), poses.size());
 
   MapInfo info = map_info_for(seq, source.get(), opt.pipeline);

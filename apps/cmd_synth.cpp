@@ -125,6 +125,13 @@ void add(CLI::App& root) {
                   "Simulated LiDAR columns per turn (1024; 2048 gives full-size 131k-point OS1-64 scans)")
       ->capture_default_str()
       ->check(integer_range(1, bounds::kMaxLidarColumns));
+  cmd->add_option("--lidar-sweep", opt->config.lidar_sweep_s,
+                  "SIMULATED rotating sweep (s, e.g. 0.1 at 10 Hz; at most the scan period): each column is cast from "
+                  "the pose at its own time after the scan's stamp, and per-point times (uint32 ns since the stamp) "
+                  "go to os1_cloud_node_point_times/, which the recording fixture writers' --point-times read. "
+                  "0: each scan from one pose")
+      ->capture_default_str()
+      ->check(finite_range(0, 1));
   cmd->add_flag("--keep-no-return", opt->config.keep_no_return,
                 "Write rays without a return as all-zero points, like the real sensor's files");
   cmd->add_option("--rig-translation-error", opt->config.rig_translation_error_m,

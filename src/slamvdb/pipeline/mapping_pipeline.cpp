@@ -100,7 +100,13 @@ SemanticMap continue_map(SemanticMap start, const SensorInput& input, FeatureSou
       if (frame.error.empty()) {
         if (!frame.point_times.empty()) {
           ++with_times;
-          deskewed += options.deskew && deskew_with_trajectory(poses, frame.stamp, frame.points, frame.point_times);
+          if (!options.deskew) {
+          } else if (!options.sweeps) {
+            deskewed += deskew_with_trajectory(poses, frame.stamp, frame.points, frame.point_times);
+          } else if (const auto sweep = options.sweeps->find(frame.stamp); sweep != options.sweeps->end()) {
+            deskew_with_sweep(sweep->second, frame.points, frame.point_times);
+            ++deskewed;
+          }
         }
         mapper.add_scan(frame.stamp, std::move(frame.points));
       } else {
@@ -121,7 +127,7 @@ SemanticMap continue_map(SemanticMap start, const SensorInput& input, FeatureSou
   report.input_skipped = stream->skipped();
   report.scans_with_point_times = with_times;
   report.scans_deskewed = deskewed;
-  if (options.deskew) report.deskew_motion = "the poses, interpolated at each point's time";
+  if (options.deskew) report.deskew_motion = options.sweeps ? kOdometryDeskewMotion : kTrajectoryDeskewMotion;
   report.seconds_total = std::chrono::duration<double>(Clock::now() - t_start).count();
   if (options.realtime) report.realtime_seconds_behind = std::max(0.0, report.seconds_total - (last_frame - t0));
   return map;

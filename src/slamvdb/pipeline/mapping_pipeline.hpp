@@ -9,6 +9,7 @@
 
 #include "slamvdb/io/dataset.hpp"
 #include "slamvdb/pipeline/mapper.hpp"
+#include "slamvdb/pipeline/scan_deskew.hpp"
 #include "slamvdb/sensors/sensor_input.hpp"
 
 namespace slamvdb {
@@ -26,6 +27,9 @@ struct PipelineOptions {
   // Scans with per-point times are deskewed before fusion (scan_deskew.hpp): with the poses'
   // motion here, with the odometry's in slam (which deskews when its odometry does).
   bool deskew = true;
+  // With deskew: the odometry's motion per scan stamp instead of the poses' (`map --odometry`,
+  // whose poses refer to mid-sweep); scans without one are fused as read.
+  const SweepMotions* sweeps = nullptr;
   // T_world_lidar (e.g. a pose file); null: the sequence's ground truth.
   const Trajectory* poses = nullptr;
   SubmapStore* store = nullptr;  // where finished submaps go as they finish (may be null)

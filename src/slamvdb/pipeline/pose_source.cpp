@@ -55,6 +55,7 @@ std::string OdometryPoses::describe() const {
 Trajectory OdometryPoses::trajectory(const SensorInput& input) const {
   const Sequence& sequence = input.sequence();
   LidarTracker tracker(options_);
+  sweeps_.clear();
   std::size_t unreadable = 0, done = 0;
   const auto stream = input.open(false);
   SensorFrame frame;
@@ -62,6 +63,7 @@ Trajectory OdometryPoses::trajectory(const SensorInput& input) const {
     if (frame.kind != SensorFrame::Kind::kScan) continue;
     if (frame.error.empty()) {
       tracker.track(frame.stamp, frame.points, frame.point_times.empty() ? nullptr : &frame.point_times, frame.name);
+      if (tracker.last_sweep()) sweeps_[frame.stamp] = *tracker.last_sweep();
     } else {
       ++unreadable;  // no pose for it; the mapper reports the file when it reads it
     }

@@ -11,6 +11,7 @@
 #include "slamvdb/io/dataset.hpp"
 #include "slamvdb/io/trajectory_io.hpp"
 #include "slamvdb/pipeline/lidar_tracking.hpp"
+#include "slamvdb/pipeline/scan_deskew.hpp"
 #include "slamvdb/sensors/sensor_input.hpp"
 
 namespace slamvdb {
@@ -65,12 +66,16 @@ class OdometryPoses final : public PoseSource {
   using PoseSource::trajectory;
   Trajectory trajectory(const SensorInput& input) const override;
   const std::vector<std::string>& problems() const { return problems_; }  // one line per scan not registered
+  // After trajectory(): the motion each deskewed scan was deskewed with, by stamp (the mapping
+  // deskews the whole scan the same way: PipelineOptions::sweeps).
+  const SweepMotions& sweeps() const { return sweeps_; }
 
  private:
   TrackingOptions options_;
   TrackingProgress progress_;
   mutable std::string summary_;
   mutable std::vector<std::string> problems_;
+  mutable SweepMotions sweeps_;
 };
 
 }  // namespace slamvdb

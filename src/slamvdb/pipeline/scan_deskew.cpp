@@ -1,7 +1,6 @@
 #include "slamvdb/pipeline/scan_deskew.hpp"
 
 #include "slamvdb/core/se3.hpp"
-#include "slamvdb/localization/preprocessing.hpp"
 
 namespace slamvdb {
 
@@ -24,6 +23,11 @@ bool deskew_with_trajectory(const Trajectory& poses, double stamp, std::vector<V
     return T_world_stamp_inv * trajectory_pose_at(poses, stamp + dt);
   });
   return true;
+}
+
+void deskew_with_sweep(const localization::SweepMotion& sweep, std::vector<Vec3f>& points,
+                       const std::vector<float>& times) {
+  points = localization::deskew_scan(points, times, [&](double t) { return sweep.T_mid_sensor(t); });
 }
 
 }  // namespace slamvdb

@@ -10,8 +10,8 @@
 
 #include "slamvdb/core/error.hpp"
 #include "slamvdb/io/scan_source.hpp"
-#include "slamvdb/localization/preprocessing.hpp"
 #include "slamvdb/pipeline/pose_source.hpp"
+#include "slamvdb/pipeline/scan_deskew.hpp"
 
 namespace slamvdb {
 
@@ -104,8 +104,7 @@ SlamMappingResult map_with_own_poses(const SensorInput& input, FeatureSource* fe
       // The whole scan deskewed with the motion the odometry deskewed its own points with, into
       // the mid-sweep frame its pose refers to.
       if (options.pipeline.deskew && tracker.last_sweep()) {
-        const localization::SweepMotion& sweep = *tracker.last_sweep();
-        scan.points = localization::deskew_scan(scan.points, scan.time, [&](double t) { return sweep.T_mid_sensor(t); });
+        deskew_with_sweep(*tracker.last_sweep(), scan.points, scan.time);
         ++deskewed;
       }
     }
@@ -158,7 +157,7 @@ SlamMappingResult map_with_own_poses(const SensorInput& input, FeatureSource* fe
   report.scans_with_point_times = with_times;
   report.scans_deskewed = deskewed;
   if (options.pipeline.deskew && options.tracking.odometry.deskew)
-    report.deskew_motion = "the odometry's constant-velocity estimate (none yet for the first two scans)";
+    report.deskew_motion = kOdometryDeskewMotion;
   report.seconds_total = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
   return SlamMappingResult{std::move(map), std::move(report), tracker.take_result(), corrections.report(), G};
 }

@@ -2,6 +2,7 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <cmath>
 #include <numbers>
 
@@ -87,21 +88,28 @@ double lidar_reflectivity(uint16_t label) {
   }
 }
 
-SimulatedScan simulate_scan(const Scene& scene, const LidarModel& model, const std::vector<Vec3d>& rays,
-                            const Pose& T_world_lidar, uint64_t seed, uint64_t scan_index, bool keep_no_return) {
+namespace {
+
+// Casts every ray from the pose of its column (ray = column * beams + beam); with `times`, each
+// point gets its column's time.
+SimulatedScan cast_scan(const Scene& scene, const LidarModel& model, const std::vector<Vec3d>& rays,
+                        const std::vector<Pose>& T_world_lidar_per_column, const std::vector<float>* column_times,
+                        uint64_t seed, uint64_t scan_index, bool keep_no_return) {
   SimulatedScan scan;
   scan.points.reserve(rays.size());
   scan.labels.reserve(rays.size());
   scan.ray_index.reserve(rays.size());
+  if (column_times) scan.times.reserve(rays.size());
   Rng rng(seed, Stream::kLidarNoise, scan_index);
-  const Vec3d origin = T_world_lidar.translation();
-  const Eigen::Matrix3d R = T_world_lidar.linear();
+  const std::size_t beams = static_cast<std::size_t>(model.beams);
   for (std::size_t i = 0; i < rays.size(); ++i) {
+    const std::size_t column = std::min(i / beams, T_world_lidar_per_column.size() - 1);
+    const Pose& T_world_lidar = T_world_lidar_per_column[column];
     // Draw the noise for every ray, hit or not, so one ray's outcome never shifts another's.
     const double noise = model.range_noise_sigma * rng.gaussian();
     const double speckle = rng.uniform(0.9, 1.1);
-    const Vec3d dir = R * rays[i];
-    const auto hit = scene.raycast(origin, dir, model.max_range);
+    const Vec3d dir = T_world_lidar.linear() * rays[i];
+    const auto hit = scene.raycast(T_world_lidar.translation(), dir, model.max_range);
     const double range = hit ? hit->range + noise : 0.0;
     if (!hit || range < model.min_range || range > model.max_range) {
       ++scan.no_returns;
@@ -117,8 +125,31 @@ SimulatedScan simulate_scan(const Scene& scene, const LidarModel& model, const s
       scan.labels.push_back(hit->label);
     }
     scan.ray_index.push_back(static_cast<uint32_t>(i));
+    if (column_times) scan.times.push_back((*column_times)[column]);
   }
   return scan;
+}
+
+}  // namespace
+
+SimulatedScan simulate_scan(const Scene& scene, const LidarModel& model, const std::vector<Vec3d>& rays,
+                            const Pose& T_world_lidar, uint64_t seed, uint64_t scan_index, bool keep_no_return) {
+  return cast_scan(scene, model, rays, {T_world_lidar}, nullptr, seed, scan_index, keep_no_return);
+}
+
+SimulatedScan simulate_swept_scan(const Scene& scene, const LidarModel& model, const std::vector<Vec3d>& rays,
+                                  const std::function<Pose(double)>& T_world_lidar_at, double sweep_seconds,
+                                  uint64_t seed, uint64_t scan_index, bool keep_no_return) {
+  if (!(sweep_seconds >= 0.0) || !std::isfinite(sweep_seconds))
+    throw Error(fmt::format("simulated LiDAR sweep {} s must be finite and >= 0", sweep_seconds));
+  std::vector<Pose> poses(static_cast<std::size_t>(model.columns));
+  std::vector<float> times(poses.size());
+  for (std::size_t c = 0; c < poses.size(); ++c) {
+    const double t = sweep_seconds * static_cast<double>(c) / model.columns;
+    times[c] = static_cast<float>(t);
+    poses[c] = T_world_lidar_at(t);
+  }
+  return cast_scan(scene, model, rays, poses, &times, seed, scan_index, keep_no_return);
 }
 
 }  // namespace slamvdb::synth

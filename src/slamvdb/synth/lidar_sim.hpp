@@ -1,8 +1,10 @@
 #pragma once
 // A simulated Ouster OS1-64-like spinning LiDAR: 64 evenly spaced beams over +-16.6 degrees,
-// 1024 columns per turn, Gaussian range noise. Each scan is taken from one pose (no motion
-// distortion within the sweep).
+// 1024 columns per turn, Gaussian range noise. A scan is taken from one pose (no motion distortion
+// within the sweep), or SIMULATED as swept (simulate_swept_scan): each column at its own time, from
+// the pose at that time, as a real spinning LiDAR takes it while the vehicle moves.
 #include <cstdint>
+#include <functional>
 #include <vector>
 
 #include "slamvdb/core/types.hpp"
@@ -30,6 +32,7 @@ struct SimulatedScan {
   std::vector<uint16_t> labels;         // RELLIS-3D class per point (0 for a kept no-return)
   std::vector<uint32_t> ray_index;      // the ray of ray_directions() each point came from
   std::size_t no_returns = 0;           // rays without a return, whether kept as zeros or dropped
+  std::vector<float> times;             // swept scans: seconds since the scan's stamp per point; else empty
 };
 
 // Relative LiDAR reflectivity of a class (retro-reflective barriers bright, water dark).
@@ -40,5 +43,14 @@ double lidar_reflectivity(uint16_t label);
 // keep_no_return, written as all-zero points (as the real sensor's files do).
 SimulatedScan simulate_scan(const Scene& scene, const LidarModel& model, const std::vector<Vec3d>& rays,
                             const Pose& T_world_lidar, uint64_t seed, uint64_t scan_index, bool keep_no_return);
+
+// The same, SIMULATED as swept over `sweep_seconds` (a rotating LiDAR: 0.1 s at 10 Hz): column c
+// is cast at time sweep_seconds * c / columns after the scan's stamp, from T_world_lidar_at(that
+// time) (times relative to the stamp), and every point gets its column's time in `times`, as a
+// real driver's per-point time field (Ouster's `t`) gives it. Points stay in the LiDAR frame of
+// their own column's pose. The same noise as simulate_scan, so zero motion gives the same points.
+SimulatedScan simulate_swept_scan(const Scene& scene, const LidarModel& model, const std::vector<Vec3d>& rays,
+                                  const std::function<Pose(double)>& T_world_lidar_at, double sweep_seconds,
+                                  uint64_t seed, uint64_t scan_index, bool keep_no_return);
 
 }  // namespace slamvdb::synth

@@ -4,6 +4,7 @@
 #include <tbb/parallel_for.h>
 
 #include <bit>
+#include <cmath>
 #include <mutex>
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
@@ -29,7 +30,7 @@ constexpr std::array<const char*, 5> kTopFiles = {"poses.txt", "times.txt", "cam
 
 // The incomplete-sequence marker goes in first (durably) and comes out last: a synth run that fails
 // or is killed anywhere in between leaves a sequence that read_sequence refuses.
-void prepare_output(const fs::path& out, bool overwrite) {
+void prepare_output(const fs::path& out, bool overwrite, bool point_times) {
   std::error_code ec;
   if (fs::exists(out, ec) && !fs::is_directory(out, ec))
     throw Error(fmt::format("output {} exists and is not a directory", out.string()));
@@ -47,7 +48,7 @@ void prepare_output(const fs::path& out, bool overwrite) {
   if (ec) throw Error(fmt::format("cannot create {}: {}", out.string(), ec.message()));
   write_output_file(out / kIncompleteMarker,
                         "slamvdb synth is writing this sequence; if this file remains, it failed or was killed\n");
-  for (const char* dir : {kLidarDir, kLidarLabelDir, kImageDir, kImageLabelDir, kRellisSimViewDir.data()}) {
+  for (const char* dir : {kLidarDir, kLidarLabelDir, kImageDir, kImageLabelDir, kRellisSimViewDir.data(), kPointTimesDir}) {
     fs::remove_all(out / dir, ec);
     if (ec) throw Error(fmt::format("cannot remove the earlier {}: {}", (out / dir).string(), ec.message()));
   }
@@ -56,6 +57,10 @@ void prepare_output(const fs::path& out, bool overwrite) {
   for (const char* dir : {kLidarDir, kLidarLabelDir, kImageDir, kImageLabelDir, kRellisSimViewDir.data()}) {
     fs::create_directories(out / dir, ec);
     if (ec) throw Error(fmt::format("cannot create {}: {}", (out / dir).string(), ec.message()));
+  }
+  if (point_times) {
+    fs::create_directories(out / kPointTimesDir, ec);
+    if (ec) throw Error(fmt::format("cannot create {}: {}", (out / kPointTimesDir).string(), ec.message()));
   }
 }
 
@@ -112,6 +117,7 @@ nlohmann::json config_json(const SynthConfig& c) {
           {"image_height", c.image_height},
           {"jpeg_quality", c.jpeg_quality},
           {"keep_no_return", c.keep_no_return},
+          {"lidar_sweep_s", c.lidar_sweep_s},
           {"base_stamp", c.base_stamp},
           {"rig_translation_error_m", c.rig_translation_error_m},
           {"rig_rotation_error_deg", c.rig_rotation_error_deg},
@@ -149,7 +155,8 @@ std::string camera_frame_stem(std::size_t frame, int64_t stamp_ms) {
 SynthSummary write_synthetic_sequence(const SynthConfig& config, const fs::path& out, bool overwrite,
                                       const SynthProgress& progress) {
   const SynthWorld world = build_synthetic_world(config);
-  prepare_output(out, overwrite);
+  const bool swept = config.lidar_sweep_s > 0.0;
+  prepare_output(out, overwrite, swept);
   const std::size_t scans = world.scan_stamps.size(), images = world.camera_stamps_ms.size();
 
   std::string poses, times;
@@ -179,9 +186,19 @@ SynthSummary write_synthetic_sequence(const SynthConfig& config, const fs::path&
     std::array<std::size_t, 256> per_class{};
     std::size_t points = 0, no_returns = 0;
     if (task < scans) {
-      const SimulatedScan scan = simulate_scan(*world.scene, config.lidar, rays, world.scan_poses[task], config.seed,
-                                               task, config.keep_no_return);
+      const double stamp = world.scan_stamps[task];
+      const SimulatedScan scan =
+          swept ? simulate_swept_scan(*world.scene, config.lidar, rays,
+                                      [&](double t) { return world.T_world_lidar(stamp + t); }, config.lidar_sweep_s,
+                                      config.seed, task, config.keep_no_return)
+                : simulate_scan(*world.scene, config.lidar, rays, world.scan_poses[task], config.seed, task,
+                                config.keep_no_return);
       const std::string stem = fmt::format("{:06d}", task);
+      if (swept) {
+        std::vector<uint32_t> ns(scan.times.size());
+        for (std::size_t i = 0; i < ns.size(); ++i) ns[i] = static_cast<uint32_t>(std::lround(scan.times[i] * 1e9));
+        write_bytes(out / kPointTimesDir / (stem + ".bin"), ns.data(), ns.size() * sizeof(uint32_t));
+      }
       write_bytes(out / kLidarDir / (stem + ".bin"), scan.points.data(), scan.points.size() * sizeof(Eigen::Vector4f));
       const std::vector<uint32_t> labels(scan.labels.begin(), scan.labels.end());
       write_bytes(out / kLidarLabelDir / (stem + ".label"), labels.data(), labels.size() * sizeof(uint32_t));
@@ -236,7 +253,12 @@ SynthSummary write_synthetic_sequence(const SynthConfig& config, const fs::path&
       {"notes",
        {"LiDAR points are column-major like RELLIS-3D's OS1 files: ray = column * beams + beam; dropped no-return "
         "rays leave gaps in that order",
-        "each scan is cast from the pose at its stamp (no motion distortion within the sweep)",
+        config.lidar_sweep_s > 0.0
+            ? fmt::format("SIMULATED sweep: each scan is swept over {} s from its stamp, column c at {} s x c / "
+                          "columns from the pose at that time (motion distortion as a spinning LiDAR has it); "
+                          "os1_cloud_node_point_times/ holds each point's time (uint32 ns since the stamp)",
+                          config.lidar_sweep_s, config.lidar_sweep_s)
+            : std::string("each scan is cast from the pose at its stamp (no motion distortion within the sweep)"),
         "the LiDAR is mounted turned 180 deg about z (x backwards) like RELLIS-3D's OS1; the camera looks along its -x",
         "intensity is on RELLIS-3D's scale (raw / 65535, about 0..0.012)",
         "camera stamps are whole milliseconds, offset and jittered so none equals a scan stamp",
@@ -270,7 +292,7 @@ SynthSummary write_synthetic_sequence(const SynthConfig& config, const fs::path&
     throw Error(fmt::format("cannot remove {}: {}", (out / kIncompleteMarker).string(), ec.message()));
   sync_directory(out);
 
-  for (const char* dir : {kLidarDir, kLidarLabelDir, kImageDir, kImageLabelDir, kRellisSimViewDir.data()})
+  for (const char* dir : {kLidarDir, kLidarLabelDir, kImageDir, kImageLabelDir, kRellisSimViewDir.data(), kPointTimesDir})
     if (fs::is_directory(out / dir, ec))
       for (const auto& entry : fs::directory_iterator(out / dir)) summary.bytes += entry.file_size();
   for (const char* file : kTopFiles) summary.bytes += fs::file_size(out / file);

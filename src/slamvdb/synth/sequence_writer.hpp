@@ -8,7 +8,11 @@
 //                                                        (16-bit, core/simulated_view.hpp; not in RELLIS-3D;
 //                                                        unless config.view_geometry is off; the folder
 //                                                        name is io's kRellisSimViewDir)
-//   poses.txt        per scan: KITTI 3x4 row-major T_world_lidar
+//   os1_cloud_node_point_times/000000.bin               with config.lidar_sweep_s > 0 only: SIMULATED per-point
+//                                                        times, N x uint32 ns since the scan's stamp (the form
+//                                                        tests/recording_fixtures' --point-times reads; not in
+//                                                        RELLIS-3D, and the folder readers do not read it)
+//   poses.txt        per scan: KITTI 3x4 row-major T_world_lidar (at the stamp: the start of a swept scan)
 //   times.txt        per scan: stamp in seconds (our addition; RELLIS-3D has none)
 //   camera_info.txt  "fx fy cx cy" at the written image size, then "k1 k2 p1 p2 k3"
 //   transforms.yaml  os1_cloud_node-pylon_camera_node: q (w x y z), t (x y z) = T_lidar_camera
@@ -28,6 +32,7 @@ inline constexpr const char* kLidarDir = "os1_cloud_node_kitti_bin";
 inline constexpr const char* kLidarLabelDir = "os1_cloud_node_semantickitti_label_id";
 inline constexpr const char* kImageDir = "pylon_camera_node";
 inline constexpr const char* kImageLabelDir = "pylon_camera_node_label_id";
+inline constexpr const char* kPointTimesDir = "os1_cloud_node_point_times";
 
 // "frame000012-1700000001_234" for frame 12 at 1700000001.234 s.
 std::string camera_frame_stem(std::size_t frame, int64_t stamp_ms);

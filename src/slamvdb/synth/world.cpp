@@ -42,6 +42,8 @@ void SynthConfig::validate() const {
   require(std::isfinite(rig_time_offset_s) && std::abs(rig_time_offset_s) <= 0.1,
           fmt::format("rig time offset {} s must be within +-0.1 s", rig_time_offset_s));
   require(repeat_spacing_m >= 10.0, fmt::format("repeat spacing {} m must be >= 10", repeat_spacing_m));
+  require(std::isfinite(lidar_sweep_s) && lidar_sweep_s >= 0.0 && lidar_sweep_s <= 1.0 / lidar_rate_hz,
+          fmt::format("LiDAR sweep {} s must be in [0, the scan period {} s]", lidar_sweep_s, 1.0 / lidar_rate_hz));
   lidar.validate();
 }
 

@@ -35,6 +35,10 @@ struct SynthConfig {
   int image_width = 640, image_height = 400;
   int jpeg_quality = 90;
   bool keep_no_return = false;  // write no-return rays as all-zero points (label 0) like the real sensor
+  // SIMULATED rotating sweep (lidar_sim.hpp simulate_swept_scan), seconds; 0: each scan is cast
+  // from the pose at its stamp. When > 0 (e.g. 0.1 at 10 Hz) each column is cast from the pose at
+  // its own time after the stamp, and the per-point times are written (kPointTimesDir).
+  double lidar_sweep_s = 0.0;
   double base_stamp = 1700000000.0;
   // The rig's own SIMULATED errors, on by default: a real camera-LiDAR calibration is off by a few
   // centimetres and tenths of a degree, and a camera's time stamp by a few milliseconds. The images
