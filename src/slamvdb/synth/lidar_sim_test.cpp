@@ -107,5 +107,42 @@ TEST(SynthLidar, NoReturnsCanBeKeptAsZeroPointsAndScansAreReproducible) {
   EXPECT_FALSE(std::equal(other.points.begin(), other.points.end(), dropped.points.begin()));
 }
 
+
+// SIMULATED sweep: each column from the pose at its own time, with that time per point. Without
+// motion it is the scan from one pose; with motion every point lies on the scene seen from its
+// column's pose.
+TEST(SynthLidar, SweptScanCastsEachColumnFromThePoseAtItsTime) {
+  const SynthWorld world = short_world();
+  LidarModel model = world.config.lidar;
+  model.columns = 256;
+  const std::vector<Vec3d> rays = model.ray_directions();
+  const SimulatedScan still = simulate_swept_scan(
+      *world.scene, model, rays, [&](double) { return world.scan_poses[2]; }, 0.1, 1, 2, false);
+  const SimulatedScan single = simulate_scan(*world.scene, model, rays, world.scan_poses[2], 1, 2, false);
+  ASSERT_EQ(still.points.size(), single.points.size());
+  EXPECT_TRUE(std::equal(still.points.begin(), still.points.end(), single.points.begin()));
+  EXPECT_TRUE(single.times.empty());
+  ASSERT_EQ(still.times.size(), still.points.size());
+  for (std::size_t i = 0; i < still.times.size(); ++i) {
+    const std::size_t column = still.ray_index[i] / model.beams;
+    ASSERT_FLOAT_EQ(still.times[i], static_cast<float>(0.1 * column / model.columns));
+  }
+  // Turning fast (the pose at each time along a 90 deg/s yaw about the stamp's pose).
+  const auto turning = [&](double t) {
+    Pose T = world.scan_poses[2];
+    T.linear() = T.linear() * Eigen::AngleAxisd(0.5 * std::numbers::pi * t, Vec3d::UnitZ()).toRotationMatrix();
+    return T;
+  };
+  const SimulatedScan swept = simulate_swept_scan(*world.scene, model, rays, turning, 0.1, 1, 2, false);
+  EXPECT_GT(swept.points.size(), rays.size() / 2);
+  for (std::size_t i = 0; i < swept.points.size(); i += 7) {
+    const Pose T = turning(swept.times[i]);
+    const Vec3d p = swept.points[i].head<3>().cast<double>();
+    const auto truth = world.scene->raycast(T.translation(), T.linear() * rays[swept.ray_index[i]], model.max_range);
+    ASSERT_TRUE(truth.has_value()) << i;
+    ASSERT_LT(std::abs(p.norm() - truth->range), 6.0 * model.range_noise_sigma) << i;
+  }
+}
+
 }  // namespace
 }  // namespace slamvdb::synth
