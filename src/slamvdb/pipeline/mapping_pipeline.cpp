@@ -100,12 +100,13 @@ SemanticMap continue_map(SemanticMap start, const SensorInput& input, FeatureSou
       if (frame.error.empty()) {
         if (!frame.point_times.empty()) {
           ++with_times;
-          if (!options.deskew) {
-          } else if (!options.sweeps) {
+          if (options.deskew && !options.sweeps) {
             deskewed += deskew_with_trajectory(poses, frame.stamp, frame.points, frame.point_times);
-          } else if (const auto sweep = options.sweeps->find(frame.stamp); sweep != options.sweeps->end()) {
-            deskew_with_sweep(sweep->second, frame.points, frame.point_times);
-            ++deskewed;
+          } else if (options.deskew) {  // the odometry's motion, when it had one for this scan
+            if (const auto sweep = options.sweeps->find(frame.stamp); sweep != options.sweeps->end()) {
+              deskew_with_sweep(sweep->second, frame.points, frame.point_times);
+              ++deskewed;
+            }
           }
         }
         mapper.add_scan(frame.stamp, std::move(frame.points));
