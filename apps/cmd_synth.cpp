@@ -55,6 +55,9 @@ void check_synth_options(Options& opt, const CLI::App& cmd) {
       if (cmd.count(option) > 0) usage_error(fmt::format("--perfect-rig sets the rig errors to 0: it cannot go with {}", option));
     opt.config.rig_translation_error_m = opt.config.rig_rotation_error_deg = opt.config.rig_time_offset_s = 0;
   }
+  if (opt.format != "mcap")
+    for (const char* option : {"--compression", "--chunk-size"})
+      if (cmd.count(option) > 0) usage_error(fmt::format("{} applies to the recording: it needs --format mcap", option));
   check_as_usage([&] {
     parse_image_size(opt.image_size, opt.config);
     opt.config.validate();

@@ -53,7 +53,7 @@ inline void write_folder_as_mcap(const std::filesystem::path& folder, const std:
   std::printf("%s written to %s as a ROS 2 MCAP recording in %.1f s (%.1f MB, %.0f MB/s of messages; %s chunks)\n",
               what.c_str(), out.c_str(), seconds, static_cast<double>(s.bytes) / 1e6,
               seconds > 0 ? static_cast<double>(s.uncompressed_bytes) / 1e6 / seconds : 0.0,
-              options.compression.c_str());
+              options.compression == "none" ? "uncompressed" : options.compression.c_str());
   for (const auto& [topic, count] : s.messages)
     std::printf("  %-40s %llu messages\n", topic.c_str(), static_cast<unsigned long long>(count));
 }

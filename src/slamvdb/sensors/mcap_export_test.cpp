@@ -172,6 +172,10 @@ TEST_F(McapExport, ConvertUsageAndInputErrors) {
   EXPECT_EQ(r.exit_code, 2) << r.output;
   r = slamvdb("convert " + quote_path(seq()));
   EXPECT_EQ(r.exit_code, 2) << r.output;
+  r = slamvdb("synth " + quote_path(dir() / "never") + " --compression none");
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_NE(r.output.find("--format mcap"), std::string::npos) << r.output;
+  EXPECT_FALSE(fs::exists(dir() / "never"));
   // A folder that is no dataset: a runtime error naming it, and no output.
   fs::create_directories(dir() / "empty");
   r = slamvdb("convert " + quote_path(dir() / "empty") + " -o " + quote_path(dir() / "x.mcap"));
