@@ -1,5 +1,6 @@
 // `slamvdb synth`: writes a SIMULATED off-road sequence (LiDAR scans, camera images, labels and
-// ground-truth poses) in the RELLIS-3D layout, for tests and demos without the real dataset.
+// ground-truth poses) in the RELLIS-3D layout, for tests and demos without the real dataset; with
+// --format mcap also as a ROS 2 MCAP recording beside the files (OUT_DIR/drive.mcap).
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
@@ -12,6 +13,7 @@
 
 #include "command_registry.hpp"
 #include "io_options.hpp"
+#include "mcap_output.hpp"
 #include "option_checks.hpp"
 #include "progress.hpp"
 #include "slamvdb/core/error.hpp"
@@ -29,7 +31,12 @@ struct Options {
   std::string image_size = "640x400";
   bool force = false;
   bool perfect_rig = false;
+  std::string format = "folder";
+  McapOutputOptions mcap;
 };
+
+// Where --format mcap writes the recording.
+constexpr const char* kSynthMcapName = "drive.mcap";
 
 void parse_image_size(const std::string& text, synth::SynthConfig& config) {
   static const std::regex kSize(R"((\d{1,5})[xX](\d{1,5}))");
@@ -48,6 +55,9 @@ void check_synth_options(Options& opt, const CLI::App& cmd) {
       if (cmd.count(option) > 0) usage_error(fmt::format("--perfect-rig sets the rig errors to 0: it cannot go with {}", option));
     opt.config.rig_translation_error_m = opt.config.rig_rotation_error_deg = opt.config.rig_time_offset_s = 0;
   }
+  if (opt.format != "mcap")
+    for (const char* option : {"--compression", "--chunk-size"})
+      if (cmd.count(option) > 0) usage_error(fmt::format("{} applies to the recording: it needs --format mcap", option));
   check_as_usage([&] {
     parse_image_size(opt.image_size, opt.config);
     opt.config.validate();
@@ -56,8 +66,9 @@ void check_synth_options(Options& opt, const CLI::App& cmd) {
   const double scans = c.length_m / c.speed_mps * c.lidar_rate_hz, images = c.length_m / c.speed_mps * c.camera_rate_hz;
   // Measured on the defaults: a scan takes about 20 B per ray (points + labels, no-return rays dropped
   // or not), a JPEG + label PNG about 0.5 B per pixel.
-  const double bytes = scans * c.lidar.beams * c.lidar.columns * 20.0 +
-                       images * static_cast<double>(c.image_width) * c.image_height * 0.5;
+  const double folder_bytes = scans * c.lidar.beams * c.lidar.columns * 20.0 +
+                              images * static_cast<double>(c.image_width) * c.image_height * 0.5;
+  const double bytes = opt.format == "mcap" ? 2 * folder_bytes : folder_bytes;  // the recording holds it all again
   std::error_code ec;
   fs::path existing = fs::absolute(opt.out);
   while (!existing.empty() && !fs::exists(existing, ec) && existing != existing.parent_path())
@@ -88,6 +99,13 @@ void run(const Options& opt) {
   std::printf("  images      %zu (%dx%d)\n", s.images, config.image_width, config.image_height);
   std::printf("  path length %.1f m (loop %.1f m, revisited after it)\n", s.path_length_m, s.loop_perimeter_m);
   std::printf("  output size %.1f MB\n", static_cast<double>(s.bytes) / 1e6);
+  const fs::path mcap = fs::path(opt.out) / kSynthMcapName;
+  if (opt.format == "mcap") {
+    write_folder_as_mcap(opt.out, mcap, opt.mcap, "SIMULATED drive");
+  } else if (opt.force) {
+    std::error_code ec;
+    fs::remove(mcap, ec);  // not the recording of an earlier drive beside this one
+  }
 }
 
 void add(CLI::App& root) {
@@ -149,6 +167,13 @@ void add(CLI::App& root) {
       ->check(finite_range(-0.1, 0.1));
   cmd->add_flag("--perfect-rig", opt->perfect_rig,
                 "No SIMULATED rig errors (the three above zero): images rendered exactly where the files say");
+  cmd->add_option("--format", opt->format,
+                  "folder: the RELLIS-3D folder layout; mcap: the folder and the same drive as a ROS 2 MCAP recording, "
+                  "OUT_DIR/drive.mcap (PointCloud2, CompressedImage, CameraInfo, labels, /tf_static, ground-truth "
+                  "Odometry; open it in Foxglove, or map it like the folder)")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"folder", "mcap"}));
+  add_mcap_output_options(cmd, opt->mcap);
   cmd->add_flag("--force", opt->force, "Replace a sequence already in OUT_DIR");
   cmd->add_flag("--skip-space-check", opt->skip_space_check,
                 "Write even if the estimated size exceeds the free space (the estimate can be wrong on compressing "

@@ -20,6 +20,7 @@ struct CommandOverviewLine {
 inline const std::vector<CommandOverviewLine>& command_overview() {
   static const std::vector<CommandOverviewLine> table = {
       {"Make data", "synth", "Write a SIMULATED sequence in the RELLIS-3D layout"},
+      {"Make data", "convert", "Write a dataset folder as a ROS 2 MCAP recording"},
       {"Make data", "demo", "The whole job on a SIMULATED drive, with pictures"},
       {"Map", "map", "Map a dataset on its poses into a map file (.svdb)"},
       {"Map", "slam", "Map a dataset on its own odometry and loop closure"},

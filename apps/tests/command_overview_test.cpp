@@ -19,7 +19,7 @@ TEST(CliConventions, TopLevelHelpListsTheWorkflowOneLineEach) {
   const auto help = run_command(cli + " --help 2>&1");
   ASSERT_EQ(help.exit_code, 0) << help.output;
   std::vector<std::string> workflow = {
-      "synth", "demo",           // make data
+      "synth", "convert", "demo",  // make data
       "map", "slam",             // map
       "odometry",                // localize
       "query", "classify", "train-queries", "import-queries",  // ask

@@ -192,6 +192,8 @@ class ConfigEquivalence : public ::testing::Test {
     if (name == "--features-model-id") samples.back().companions = {"--features=precomputed"};
     if (name == "--labels")
       for (Sample& s : samples) s.companions = {"--simulated"};
+    if (cmd == "synth" && (name == "--compression" || name == "--chunk-size"))
+      for (Sample& s : samples) s.companions = {"--format=mcap"};
     if (o->get_expected_max() > 1 && !samples.empty())  // a repeatable option: two values at once
       samples.push_back({{samples.front().values.front(), samples.back().values.front()}, {}});
     return samples;

@@ -16,7 +16,7 @@
 
 #include <nlohmann/json.hpp>
 
-#include "slamvdb/store/map_store.hpp"
+#include "slamvdb/testing/map_cells.hpp"
 #include "slamvdb/testing/recording_fixtures.hpp"
 #include "slamvdb/testing/run_command.hpp"
 
@@ -25,6 +25,7 @@ namespace slamvdb {
 namespace recording_commands_test {
 
 namespace fs = std::filesystem;
+using testing::occupied_voxels;
 using testing::quote_path;
 using testing::run_command;
 
@@ -55,18 +56,6 @@ class RecordingCommands : public testing::RecordingFixtureTest {
   }
 };
 
-// Every occupied voxel of every submap with its log-odds.
-std::map<std::tuple<int, int, int, int>, float> occupied_voxels(const fs::path& file) {
-  const SemanticMap map = load_map(file);
-  std::map<std::tuple<int, int, int, int>, float> out;
-  for (const SubmapInfo& info : map.submaps())
-    map.read_submap(info.id, [&](const Submap& submap) {
-      submap.voxels().occupancy().for_each_occupied([&](const VoxelKey& key, float log_odds) {
-        out[{submap.id(), key.x(), key.y(), key.z()}] = log_odds;
-      });
-    });
-  return out;
-}
 
 std::size_t non_blank_lines(const fs::path& file) {
   std::ifstream in(file);

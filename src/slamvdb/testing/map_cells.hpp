@@ -2,11 +2,13 @@
 // Test helpers: a map's semantic cells read through the global index, decoded, keyed by cell.
 #include <gtest/gtest.h>
 
+#include <filesystem>
 #include <map>
 #include <tuple>
 #include <vector>
 
 #include "slamvdb/map/semantic_map.hpp"
+#include "slamvdb/store/map_store.hpp"
 
 namespace slamvdb::testing {
 
@@ -16,6 +18,20 @@ struct DecodedCell {
   std::vector<float> embedding;
 };
 using CellTuple = std::tuple<int, int, int>;
+
+// Every occupied voxel of every submap of a map file with its log-odds, keyed by (submap, x, y, z):
+// two ways of reading the same drive must give the same map.
+inline std::map<std::tuple<int, int, int, int>, float> occupied_voxels(const std::filesystem::path& file) {
+  const SemanticMap map = load_map(file);
+  std::map<std::tuple<int, int, int, int>, float> out;
+  for (const SubmapInfo& info : map.submaps())
+    map.read_submap(info.id, [&](const Submap& submap) {
+      submap.voxels().occupancy().for_each_occupied([&](const VoxelKey& key, float log_odds) {
+        out[{submap.id(), key.x(), key.y(), key.z()}] = log_odds;
+      });
+    });
+  return out;
+}
 
 inline std::map<CellTuple, DecodedCell> index_cells(const SemanticMap& map) {
   std::map<CellTuple, DecodedCell> out;
