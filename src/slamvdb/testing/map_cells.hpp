@@ -48,6 +48,18 @@ inline void expect_same_index_cells(const SemanticMap& a, const SemanticMap& b) 
   EXPECT_EQ(a.num_known_voxels(), b.num_known_voxels());
 }
 
+// Every occupied voxel of every submap (submap id, voxel x, y, z) with its log-odds.
+inline std::map<std::tuple<int, int, int, int>, float> occupied_voxel_log_odds(const SemanticMap& map) {
+  std::map<std::tuple<int, int, int, int>, float> out;
+  for (const SubmapInfo& info : map.submaps())
+    map.read_submap(info.id, [&](const Submap& submap) {
+      submap.voxels().occupancy().for_each_occupied([&](const VoxelKey& key, float log_odds) {
+        out[{submap.id(), key.x(), key.y(), key.z()}] = log_odds;
+      });
+    });
+  return out;
+}
+
 // Bytes the semantic layers of all submaps allocate, per entry.
 inline double semantic_bytes_per_entry(const SemanticMap& map) {
   std::size_t bytes = 0, entries = 0;
