@@ -160,7 +160,7 @@ void run(Options opt, const std::string& config) {
   read_options.max_image_pixels = static_cast<std::int64_t>(opt.max_image_pixels);
   InputOptions input_options = opt.recording.input_options();
   input_options.read = read_options;
-  input_options.need_poses = opt.poses.empty() && !opt.odometry;
+  input_options.need_poses = opt.poses.empty() && !opt.odometry;  // (--pose-frame: poses from tf)
   const auto input = open_input(opt.dataset, input_options);
   const Sequence& seq = input->sequence();
   print_input(*input);
@@ -364,6 +364,8 @@ void add(CLI::App& root) {
     if (opt->resume && !std::filesystem::is_regular_file(opt->output))
       usage_error(fmt::format("--resume: there is no map file {} to continue", opt->output));
     if (opt->odometry && !opt->poses.empty()) usage_error("--odometry and --poses are two pose sources: give one");
+    if (!opt->recording.pose_frame.empty() && (opt->odometry || !opt->poses.empty()))
+      usage_error(fmt::format("--pose-frame and {} are two pose sources: give one", opt->odometry ? "--odometry" : "--poses"));
     if (!opt->tracking.loop_closure && !opt->odometry) usage_error("--no-loop-closure goes with --odometry");
     if (opt->no_checkpoints && cmd->count("--unload-radius") == 0) {  // no file to unload to: keep all
       opt->pipeline.unload_radius = 0;

@@ -17,7 +17,7 @@ namespace slamvdb::cli {
 
 struct RecordingOptions {
   TopicChoice topics;
-  std::string extrinsics, time_source = "header";
+  std::string extrinsics, time_source = "header", pose_frame, sensor_frame;
   bool skip_bad_messages = false;
 
   void add_to(CLI::App* cmd) {
@@ -33,6 +33,11 @@ struct RecordingOptions {
     cmd->add_option("--pose-topic", topics.poses,
                     "Recordings: poses of the LiDAR from a nav_msgs/Odometry, geometry_msgs/PoseStamped or "
                     "TransformStamped topic (map: default the only such topic)");
+    cmd->add_option("--pose-frame", pose_frame,
+                    "Recordings: poses from tf, T_F_S of this frame F (e.g. map or odom) and --sensor-frame S at "
+                    "each scan's stamp, instead of a pose topic");
+    cmd->add_option("--sensor-frame", sensor_frame,
+                    "Recordings, with --pose-frame: the sensor's frame in tf (default: the LiDAR messages' frame_id)");
     cmd->add_option("--extrinsics", extrinsics,
                     "Recordings: T_lidar_camera from a RELLIS transforms.yaml, for recordings without the transform in "
                     "/tf_static or /tf (given, it is used instead of tf's)")
@@ -45,8 +50,14 @@ struct RecordingOptions {
                   "Recordings: skip and count messages of a known type that do not decode, instead of stopping");
   }
 
+  // Usage errors (exit 2) for options that exclude each other.
   InputOptions input_options() const {
+    if (!pose_frame.empty() && !topics.poses.empty())
+      usage_error("--pose-frame and --pose-topic are two pose sources: give one");
+    if (!sensor_frame.empty() && pose_frame.empty()) usage_error("--sensor-frame goes with --pose-frame");
     InputOptions o;
+    o.pose_frame = pose_frame;
+    o.sensor_frame = sensor_frame;
     o.topics = topics;
     o.extrinsics = extrinsics;
     o.time_source = time_source == "log" ? TimeSource::kLog : TimeSource::kHeader;

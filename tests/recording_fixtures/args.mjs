@@ -35,6 +35,12 @@ export function parseArguments(argv, help, defaults, own, positionalError) {
     else if (a === "--padding") o.padding = int(a);
     else if (a === "--organised") o.organised = int(a);
     else if (a === "--point-times") o.pointTimesDir = value();
+    else if (a === "--tf-poses") o.tfPoses = true;
+    else if (a === "--moving-camera") {
+      const v = value();
+      if (!/^-?\d+(\.\d*)?$/.test(v)) throw new UsageError(`--moving-camera must be radians per second, not "${v}"`);
+      o.movingCamera = Number(v);
+    }
     else if (a === "--log-time-offset") {
       const v = value();
       if (!/^-?\d+(\.\d*)?$/.test(v)) throw new UsageError(`--log-time-offset must be seconds, not "${v}"`);

@@ -118,8 +118,21 @@ function readExtrinsics(file) {
   };
 }
 
+// q = a * b (quaternions {w, x, y, z}).
+function multiplyQuaternions(a, b) {
+  return {
+    w: a.w * b.w - a.x * b.x - a.y * b.y - a.z * b.z,
+    x: a.w * b.x + a.x * b.w + a.y * b.z - a.z * b.y,
+    y: a.w * b.y - a.x * b.z + a.y * b.w + a.z * b.x,
+    z: a.w * b.z + a.x * b.y - a.y * b.x + a.z * b.w,
+  };
+}
+
 // The messages of the content table, in time order (equal stamps in table order).
-// options: {maxScans, padding, organised, pointTimesDir}
+// options: {maxScans, padding, organised, pointTimesDir, tfPoses, movingCamera}
+//   tfPoses: the ground-truth poses also on /tf (parent "map", child "os1_sensor", one per scan).
+//   movingCamera (rad/s, may be 0): the LiDAR-camera joint on /tf instead of /tf_static, one per
+//   camera image, turned about the LiDAR's z axis by movingCamera x (image stamp - first scan stamp).
 export function readSequence(dir, options = {}) {
   const need = (name) => {
     const p = path.join(dir, name);
@@ -143,7 +156,8 @@ export function readSequence(dir, options = {}) {
 
   const messages = [];
   const add = (topic, kind, stamp, content) => messages.push({ topic, kind, stamp, content, order: messages.length });
-  add("/tf_static", "tf", stamps[0], { parent: "os1_sensor", child: "pylon_camera", ...extrinsics });
+  if (options.movingCamera === undefined)
+    add("/tf_static", "tf", stamps[0], { parent: "os1_sensor", child: "pylon_camera", ...extrinsics });
   for (let i = 0; i < count; ++i) {
     const bin = fs.readFileSync(path.join(scanDir, scans[i]));
     if (bin.length % 16 !== 0) throw new UsageError(`${scans[i]}: size ${bin.length} is not a multiple of 16`);
@@ -158,6 +172,12 @@ export function readSequence(dir, options = {}) {
       rotation: quaternionOf([p[0], p[1], p[2], p[4], p[5], p[6], p[8], p[9], p[10]]),
       translation: { x: p[3], y: p[7], z: p[11] },
     });
+    if (options.tfPoses)
+      add("/tf", "tf", stamps[i], {
+        parent: "map", child: "os1_sensor",
+        rotation: quaternionOf([p[0], p[1], p[2], p[4], p[5], p[6], p[8], p[9], p[10]]),
+        translation: { x: p[3], y: p[7], z: p[11] },
+      });
   }
   const imageDir = need("pylon_camera_node");
   for (const name of fs.readdirSync(imageDir).filter((f) => f.endsWith(".jpg")).sort()) {
@@ -167,6 +187,17 @@ export function readSequence(dir, options = {}) {
     const { width, height } = jpegSize(jpeg, name);
     add("/pylon_camera_node/image_raw/compressed", "jpeg", stamp, { jpeg });
     add("/pylon_camera_node/camera_info", "camera_info", stamp, { width, height, fx, fy, cx, cy, distortion });
+    if (options.movingCamera !== undefined) {
+      const angle = options.movingCamera * (Number(stamp - stamps[0]) / 1e9);
+      const turn = { w: Math.cos(angle / 2), x: 0, y: 0, z: Math.sin(angle / 2) };
+      const t = extrinsics.translation;
+      const [c, s] = [Math.cos(angle), Math.sin(angle)];
+      add("/tf", "tf", stamp, {
+        parent: "os1_sensor", child: "pylon_camera",
+        rotation: multiplyQuaternions(turn, extrinsics.rotation),
+        translation: { x: c * t.x - s * t.y, y: s * t.x + c * t.y, z: t.z },
+      });
+    }
   }
   const labelDir = path.join(dir, "pylon_camera_node_label_id");
   if (fs.existsSync(labelDir)) {

@@ -26,6 +26,9 @@ const HELP = `usage: node write_mcap.mjs SEQUENCE_DIR OUT.mcap [options]
   --organised H                organised clouds of H rows
   --point-times DIR            per-point times: DIR/NNNNNN.bin, one uint32 (ns since scan start) per point
   --log-time-offset S          log time = header stamp + S seconds
+  --tf-poses                   the ground-truth poses also on /tf (map -> os1_sensor, one per scan)
+  --moving-camera R            the LiDAR-camera joint on /tf (not /tf_static), one per image, turned
+                               about the LiDAR's z by R rad/s since the first scan (R may be 0)
   --json-channel               also a channel with message encoding json (/diagnostics_json, 3 messages)
   --manifest FILE              JSON lines: topic, type, log_time_ns, size, crc32 of every message written
   --help`;

@@ -21,8 +21,8 @@ const HELP = `usage: node write_rosbag2.mjs SEQUENCE_DIR OUT_DIR [options]
   --ros-distro humble|iron|jazzy     sqlite schema 3 (humble) or 4, metadata version 5, 8 or 9 (default jazzy)
   --no-metadata                      no metadata.yaml (only the .db3 files)
   --big-endian                       CDR with big-endian encapsulation
-  --max-scans K, --padding P, --organised H, --point-times DIR, --log-time-offset S
-                                     as for write_mcap.mjs
+  --max-scans K, --padding P, --organised H, --point-times DIR, --log-time-offset S,
+  --tf-poses, --moving-camera R      as for write_mcap.mjs
   --python PATH                      the Python that writes the .db3 files (default python3)
   --manifest FILE                    JSON lines: topic, type, log_time_ns, size, crc32 of every message
   --help`;

@@ -44,6 +44,9 @@ struct ImageRecord {
   int width = 0, height = 0;
   // In place of rgb / labels: the image in memory (recordings). Shared: records are copied into queues.
   std::shared_ptr<const ImageBytes> rgb_data{}, label_data{};
+  // The camera in the LiDAR frame at this image's stamp, when the extrinsics move (a recording's
+  // tf); empty: the sequence's T_lidar_camera.
+  std::optional<Pose> T_lidar_camera{};
   bool has_rgb() const { return !rgb.empty() || rgb_data; }
   bool has_labels() const { return !labels.empty() || label_data; }
 };

@@ -390,7 +390,8 @@ void Mapper::process(Item& item, const Pose& T_world_lidar) {
   bool fused = false;
   if (item.error.empty()) {
     const CameraModel camera = options_.camera.scaled(item.features.width(), item.features.height());
-    const Pose T_world_camera = T_world_lidar * options_.T_lidar_camera;
+    const bool moving = item.record && item.record->T_lidar_camera;  // extrinsics at the image's stamp
+    const Pose T_world_camera = T_world_lidar * (moving ? *item.record->T_lidar_camera : options_.T_lidar_camera);
     const bool all = options_.fusion.occlusion_from_other_submaps;
     fused = map_.update_active(
         item.stamp, [&](VoxelMap& submap, const Pose& T_world_submap, std::span<const PlacedVoxelMap> finished) {

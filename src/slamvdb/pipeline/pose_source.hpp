@@ -27,7 +27,7 @@ class PoseSource {
 
 class DatasetPoses final : public PoseSource {
  public:
-  std::string describe() const override { return "the input's ground truth (poses.txt, or a recording's pose topic)"; }
+  std::string describe() const override { return "the input's ground truth (poses.txt, or a recording's pose topic or tf)"; }
   using PoseSource::trajectory;
   Trajectory trajectory(const SensorInput& input) const override;
 };

@@ -9,6 +9,7 @@
 #include "slamvdb/core/error.hpp"
 #include "slamvdb/recording/messages.hpp"
 #include "slamvdb/recording/recording.hpp"
+#include "slamvdb/sensors/recording_tf.hpp"
 #include "slamvdb/sensors/recording_topics.hpp"
 #include "slamvdb/sensors/sensor_input.hpp"
 
@@ -30,7 +31,7 @@ InputSummary summarize_recording(const std::filesystem::path& path) {
   s.bytes = reader->size_bytes();
   std::map<std::uint32_t, TopicSummary> topics;
   for (const recording::Channel& c : reader->channels()) topics[c.id] = {c.topic, c.type, c.encoding};
-  std::set<std::string> edges;
+  TfBuffer tf(kDefaultTfTolerance, false);  // counts and spans only: /tf can be large
   recording::Message m;
   bool first = true;
   while (reader->next(m)) {
@@ -44,16 +45,14 @@ InputSummary summarize_recording(const std::filesystem::path& path) {
     if (recording::message_kind(m.channel->type) == recording::MessageKind::kTf &&
         m.channel->serialization != recording::Serialization::kOther) {
       try {
-        const bool is_static = m.channel->topic.find("static") != std::string::npos;
-        for (const auto& tf : recording::decode_tf_message(m.data, m.channel->serialization))
-          edges.insert(fmt::format("{} -> {}{}", tf.header.frame_id, tf.child_frame_id, is_static ? " (static)" : ""));
+        add_tf_message(tf, m, TimeSource::kHeader);
       } catch (const Error& e) {
         s.notes.push_back(fmt::format("{} message {} does not decode: {}", m.channel->topic, m.index, e.what()));
       }
     }
   }
   for (auto& [id, t] : topics) s.topics.push_back(std::move(t));
-  s.tf_edges.assign(edges.begin(), edges.end());
+  s.tf_edges = tf.edges();
   try {
     const TopicSelection chosen = choose_topics(reader->channels(), {}, true, true, false);
     s.choices = chosen.reasons;
@@ -114,9 +113,8 @@ std::string summary_text(const InputSummary& s) {
     for (const TopicSummary& t : s.topics)
       out += fmt::format("    {}  {} ({})  {} messages, {:.2f} Hz, {:.2f} MB\n", t.topic, t.type, t.encoding,
                          t.messages, t.rate_hz(), static_cast<double>(t.bytes) / 1e6);
-    out += "  tf frames:\n";
-    if (s.tf_edges.empty()) out += "    none\n";
-    for (const auto& edge : s.tf_edges) out += "    " + edge + "\n";
+    out += "  tf frames (each child under its parent):\n";
+    out += s.tf_edges.empty() ? "    none\n" : tf_tree_text(s.tf_edges, "    ");
     out += "  slamvdb would use:\n";
     for (const auto& choice : s.choices) out += "    " + choice + "\n";
   }
@@ -138,7 +136,11 @@ std::string summary_json(const InputSummary& s) {
       topics.push_back({{"topic", t.topic}, {"type", t.type}, {"encoding", t.encoding}, {"messages", t.messages},
                         {"bytes", t.bytes}, {"rate_hz", t.rate_hz()}});
     j["topics"] = topics;
-    j["tf"] = s.tf_edges;
+    nlohmann::json tf = nlohmann::json::array();
+    for (const TfEdgeSummary& e : s.tf_edges)
+      tf.push_back({{"parent", e.parent}, {"child", e.child}, {"static", e.is_static}, {"transforms", e.messages},
+                    {"first_stamp", e.first}, {"last_stamp", e.last}, {"rate_hz", e.rate_hz()}});
+    j["tf"] = tf;
     j["uses"] = s.choices;
   } else {
     j["holds"] = s.facts;

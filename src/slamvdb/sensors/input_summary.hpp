@@ -7,6 +7,8 @@
 #include <string>
 #include <vector>
 
+#include "slamvdb/sensors/tf_buffer.hpp"
+
 namespace slamvdb {
 
 struct TopicSummary {
@@ -22,7 +24,7 @@ struct InputSummary {
   std::int64_t start_ns = 0, end_ns = 0;  // log times (recordings)
   std::uint64_t bytes = 0, messages = 0;
   std::vector<TopicSummary> topics;
-  std::vector<std::string> tf_edges;  // "parent -> child (static)"
+  std::vector<TfEdgeSummary> tf_edges;  // by parent, then child
   std::vector<std::string> choices;   // which topic slamvdb would use for what, and why (or what it needs)
   std::vector<std::string> facts;     // dataset folders: what they hold, one line each
   std::vector<std::string> notes;

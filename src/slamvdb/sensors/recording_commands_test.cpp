@@ -5,6 +5,7 @@
 // from tf or --extrinsics, --pose-topic and damaged recordings through the CLI.
 #include <gtest/gtest.h>
 
+#include <chrono>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -185,6 +186,82 @@ TEST_F(RecordingCommands, SeveralLidarTopicsAreAUsageErrorNoCameraIsGeometryOnly
   EXPECT_EQ(occupied_voxels(dir() / "no_tf.svdb"), occupied_voxels(dir() / "with_tf.svdb"));
 }
 
+TEST_F(RecordingCommands, SeveralCameraOrLabelTopicsAreAUsageErrorListingThem) {
+  const fs::path bag = inputs()[1].second;
+  // A second camera: its images and camera info in a namespace of their own.
+  const fs::path two_cameras = rewritten_bag(
+      bag, dir() / "two_cameras.bag",
+      "[t, t.replace('/pylon_camera_node/', '/camera2/')] if t.startswith('/pylon_camera_node/') else [t]");
+  auto r = slamvdb("map " + quote_path(two_cameras) + " -o " + quote_path(dir() / "two_cameras.svdb") +
+                   " --features none");
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  for (const char* expected : {"/pylon_camera_node/image_raw/compressed", "/camera2/image_raw/compressed",
+                               "--image-topic", "--label-topic", "--pose-topic"})
+    EXPECT_NE(r.output.find(expected), std::string::npos) << expected << "\n" << r.output;
+  r = slamvdb("map " + quote_path(two_cameras) + " -o " + quote_path(dir() / "two_cameras.svdb") +
+              " --features none --image-topic /camera2/image_raw/compressed");
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("/camera2/camera_info"), std::string::npos) << r.output;  // its namespace's CameraInfo
+  // A second label topic.
+  const fs::path two_labels = rewritten_bag(
+      bag, dir() / "two_labels.bag", "[t, '/other_label/image'] if t == '/pylon_camera_node_label_id/image' else [t]");
+  r = slamvdb("map " + quote_path(two_labels) + " -o " + quote_path(dir() / "two_labels.svdb") + " --features none");
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  for (const char* expected : {"/pylon_camera_node_label_id/image", "/other_label/image", "--label-topic"})
+    EXPECT_NE(r.output.find(expected), std::string::npos) << expected << "\n" << r.output;
+}
+
+TEST_F(RecordingCommands, TimeSourceLogFollowsTheRecordTimesHeaderStampsByDefault) {
+  // The writer shifts every log time by 1000.25 s; the header stamps stay those of times.txt.
+  const fs::path shifted = write("write_mcap.mjs", "shifted.mcap", "--profile ros2 --log-time-offset 1000.25");
+  const auto stamps_of = [&](const std::string& options) {
+    const fs::path out = dir() / "shifted_poses.txt";
+    const auto r = slamvdb("odometry " + quote_path(shifted) + " -o " + quote_path(out) + " --format tum" + options);
+    EXPECT_EQ(r.exit_code, 0) << r.output;
+    std::vector<double> stamps;
+    std::ifstream in(out);
+    for (std::string line; std::getline(in, line);)
+      if (!line.empty() && line[0] != '#') stamps.push_back(std::stod(line));
+    return std::make_pair(stamps, r.output);
+  };
+  const auto [header, header_output] = stamps_of("");
+  const auto [log, log_output] = stamps_of(" --time-source log");
+  EXPECT_NE(header_output.find("time source: header stamps"), std::string::npos) << header_output;
+  EXPECT_NE(log_output.find("time source: log (record) times"), std::string::npos) << log_output;
+  const std::vector<double> written = numbers_in(seq() / "times.txt");
+  ASSERT_EQ(header.size(), written.size());
+  ASSERT_EQ(log.size(), written.size());
+  for (std::size_t i = 0; i < written.size(); ++i) {
+    EXPECT_NEAR(header[i], written[i], 1e-5);  // header stamps: unaffected by the shift
+    EXPECT_NEAR(log[i], written[i] + 1000.25, 1e-5);
+  }
+}
+
+TEST_F(RecordingCommands, RealtimeReplaysARecordingAtItsRecordedRate) {
+  // A 10 m SIMULATED drive (about 2 s of scans) as an MCAP; --realtime takes at least its span and
+  // maps the same voxels as reading as fast as possible.
+  const fs::path seq10 = dir() / "seq10";
+  auto r = slamvdb("synth " + quote_path(seq10) + " --length 10 --image-size 160x100 --lidar-columns 256");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const fs::path mcap = dir() / "drive10.mcap";
+  ASSERT_TRUE(testing::run_fixture_writer("write_mcap.mjs", quote_path(seq10) + " " + quote_path(mcap) + " --profile ros2"));
+  const std::vector<double> stamps = numbers_in(seq10 / "times.txt");
+  ASSERT_GE(stamps.size(), 10u);
+  const double span = stamps.back() - stamps.front();
+  r = slamvdb("map " + quote_path(mcap) + " -o " + quote_path(dir() / "fast.svdb") + " --features none");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const auto start = std::chrono::steady_clock::now();
+  r = slamvdb("map " + quote_path(mcap) + " -o " + quote_path(dir() / "paced.svdb") + " --features none --realtime");
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_GE(seconds, span) << r.output;
+  EXPECT_NE(r.output.find("real time: kept up with " + std::to_string(stamps.size()) + " of " +
+                          std::to_string(stamps.size()) + " scans"),
+            std::string::npos)
+      << r.output;
+  EXPECT_EQ(occupied_voxels(dir() / "paced.svdb"), occupied_voxels(dir() / "fast.svdb"));
+}
+
 TEST_F(RecordingCommands, DamagedRecordingIsAClearErrorNeverACrash) {
   const fs::path mcap = inputs()[3].second;
   std::string bytes;
@@ -244,7 +321,8 @@ TEST_F(RecordingCommands, InspectSaysWhatARecordingHoldsAndWhichTopicsItWouldUse
     SCOPED_TRACE(input.string());
     const auto text = slamvdb("inspect " + quote_path(input));
     ASSERT_EQ(text.exit_code, 0) << text.output;
-    for (const char* expected : {"/os1_cloud_node/points  sensor_msgs/PointCloud2", "os1_sensor -> pylon_camera (static)",
+    for (const char* expected : {"/os1_cloud_node/points  sensor_msgs/PointCloud2",
+                                 "    os1_sensor\n      pylon_camera  (static, 1 transform)\n",
                                  "LiDAR: /os1_cloud_node/points (the only PointCloud2 topic)",
                                  "camera: /pylon_camera_node/image_raw/compressed with /pylon_camera_node/camera_info",
                                  "labels: /pylon_camera_node_label_id/image", "poses: /ground_truth/odom"})

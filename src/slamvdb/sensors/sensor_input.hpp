@@ -63,6 +63,9 @@ struct InputOptions {
   TimeSource time_source = TimeSource::kHeader;
   bool skip_bad_messages = false;  // count and skip messages of a known type that do not decode
   bool need_poses = false;  // a pose topic is chosen automatically when there is one (map's ground truth)
+  // Poses from tf instead of a pose topic: T_pose_sensor at each scan's stamp (sensor_frame empty:
+  // the LiDAR's frame). Frames tf does not know or connect are a TopicChoiceError.
+  std::string pose_frame, sensor_frame;
 };
 
 class SensorInput {

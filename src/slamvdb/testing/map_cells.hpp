@@ -19,10 +19,8 @@ struct DecodedCell {
 };
 using CellTuple = std::tuple<int, int, int>;
 
-// Every occupied voxel of every submap of a map file with its log-odds, keyed by (submap, x, y, z):
-// two ways of reading the same drive must give the same map.
-inline std::map<std::tuple<int, int, int, int>, float> occupied_voxels(const std::filesystem::path& file) {
-  const SemanticMap map = load_map(file);
+// Every occupied voxel of every submap (submap id, voxel x, y, z) with its log-odds.
+inline std::map<std::tuple<int, int, int, int>, float> occupied_voxel_log_odds(const SemanticMap& map) {
   std::map<std::tuple<int, int, int, int>, float> out;
   for (const SubmapInfo& info : map.submaps())
     map.read_submap(info.id, [&](const Submap& submap) {
@@ -31,6 +29,11 @@ inline std::map<std::tuple<int, int, int, int>, float> occupied_voxels(const std
       });
     });
   return out;
+}
+
+// The same for a map file: two ways of reading the same drive must give the same map.
+inline std::map<std::tuple<int, int, int, int>, float> occupied_voxels(const std::filesystem::path& file) {
+  return occupied_voxel_log_odds(load_map(file));
 }
 
 inline std::map<CellTuple, DecodedCell> index_cells(const SemanticMap& map) {
