@@ -117,15 +117,17 @@ TEST(McapWriter, MessagesDecodeToWhatWasEncoded) {
   EXPECT_EQ(last_t, 99'000'000u);
 
   const std::vector<std::uint8_t> pixels = {1, 2, 3, 4, 5, 6};
-  const ImageView image = decode_image(encode_mono8_image({0, 5, "cam"}, 3, 2, pixels), Serialization::kCdr);
+  // The views point into the message bytes, which must outlive them.
+  const auto image_bytes = encode_mono8_image({0, 5, "cam"}, 3, 2, pixels);
+  const ImageView image = decode_image(image_bytes, Serialization::kCdr);
   std::vector<std::uint8_t> mono;
   image_to_mono8(image, mono);
   EXPECT_EQ(mono, pixels);
   EXPECT_EQ(image.encoding, "mono8");
 
   const std::vector<std::uint8_t> jpeg = {0xFF, 0xD8, 0xFF, 0xE0};
-  const CompressedImageView compressed =
-      decode_compressed_image(encode_compressed_image({0, 5, "cam"}, "jpeg", jpeg), Serialization::kCdr);
+  const auto compressed_bytes = encode_compressed_image({0, 5, "cam"}, "jpeg", jpeg);
+  const CompressedImageView compressed = decode_compressed_image(compressed_bytes, Serialization::kCdr);
   EXPECT_EQ(compressed.format, "jpeg");
   EXPECT_EQ(std::vector<std::uint8_t>(compressed.data.begin(), compressed.data.end()), jpeg);
 
