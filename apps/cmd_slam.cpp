@@ -184,6 +184,11 @@ void add(CLI::App& root) {
                 "Fuse scans with per-point times as read, without moving each point to where the sensor was at the "
                 "scan's pose (by default they are deskewed with the odometry's motion estimate); the odometry does not "
                 "deskew either");
+  cmd->add_flag("--realtime", opt->pipeline.realtime,
+                "Replay at sensor rate on the wall clock: each scan is taken at its stamp; one that a newer scan "
+                "overtook while the odometry worked is skipped (as a driver's queue of one would), frames that find "
+                "the mapper's queue full are dropped, all counted in the report. Default: every scan, as fast as it "
+                "goes");
   cmd->add_option("--sim-odometry-drift", opt->tracking.simulated_drift_deg_per_100m,
                   "SIMULATED odometry drift: degrees of heading error added per 100 m travelled, to see loop closure "
                   "correct a drive whose odometry hardly drifts")

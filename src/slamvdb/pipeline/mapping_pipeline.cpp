@@ -3,9 +3,10 @@
 #include <fmt/format.h>
 
 #include <chrono>
-#include <thread>
+#include <optional>
 
 #include "slamvdb/core/error.hpp"
+#include "slamvdb/pipeline/realtime_pacer.hpp"
 #include "slamvdb/pipeline/scan_deskew.hpp"
 
 namespace slamvdb {
@@ -78,10 +79,11 @@ SemanticMap continue_map(SemanticMap start, const SensorInput& input, FeatureSou
   bool have = stream->next(frame);
   const double t0 = have ? frame.stamp : 0.0;
   double last_frame = t0, last_scan = -1e300;
+  std::optional<RealtimePacer> pacer;
+  if (options.realtime) pacer.emplace(t0);
   const auto wait_for = [&](double t) {
-    if (!options.realtime) return;
-    std::this_thread::sleep_until(t_start +
-                                  std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(t - t0)));
+    if (!pacer) return;
+    pacer->wait_for(t);
     last_frame = t;
   };
   while (have) {
@@ -130,7 +132,7 @@ SemanticMap continue_map(SemanticMap start, const SensorInput& input, FeatureSou
   report.scans_deskewed = deskewed;
   if (options.deskew) report.deskew_motion = options.sweeps ? kOdometryDeskewMotion : kTrajectoryDeskewMotion;
   report.seconds_total = std::chrono::duration<double>(Clock::now() - t_start).count();
-  if (options.realtime) report.realtime_seconds_behind = std::max(0.0, report.seconds_total - (last_frame - t0));
+  if (pacer) report.realtime_seconds_behind = std::max(0.0, pacer->elapsed() - (last_frame - t0));
   return map;
 }
 

@@ -58,8 +58,12 @@ std::string PipelineReport::summary() const {
   s += '\n';
   s += deskew_summary();
   if (realtime_seconds_behind >= 0)
-    s += fmt::format("\nreal time: kept up with {} of {} scans and {} of {} images; done {:.2f} s after the last frame",
-                     scans_integrated, scans_total, images_fused, images_total, realtime_seconds_behind);
+    s += fmt::format("\nreal time: kept up with {} of {} scans{} and {} of {} images; done {:.2f} s after the last frame",
+                     scans_integrated, scans_total + scans_overtaken,
+                     scans_overtaken ? fmt::format(" ({} overtaken by a newer scan while the odometry worked)",
+                                                   scans_overtaken)
+                                     : "",
+                     images_fused, images_total, realtime_seconds_behind);
   for (const std::string& line : input_skipped) s += "\ninput: " + line;
   for (std::size_t i = 0; i < problems.size() && i < 20; ++i) s += "\n  skipped: " + problems[i];
   if (problems.size() + problems_not_listed > 20)

@@ -49,6 +49,9 @@ struct PipelineReport {
   // Real-time replay only: how long after the last frame's time the mapper had done all (< 0: not
   // a real-time run).
   double realtime_seconds_behind = -1;
+  // Real-time slam only: scans never given to the mapper because a newer scan had arrived while
+  // the odometry worked on an earlier one (not in scans_total).
+  std::size_t scans_overtaken = 0;
   // One line per item not used, with the reason (the first kMaxProblems; the counts above are complete).
   static constexpr std::size_t kMaxProblems = 1000;
   std::vector<std::string> problems;

@@ -11,6 +11,7 @@
 #include "slamvdb/core/error.hpp"
 #include "slamvdb/io/scan_source.hpp"
 #include "slamvdb/pipeline/pose_source.hpp"
+#include "slamvdb/pipeline/realtime_pacer.hpp"
 #include "slamvdb/pipeline/scan_deskew.hpp"
 
 namespace slamvdb {
@@ -44,8 +45,41 @@ SlamMappingResult map_with_own_poses(const SensorInput& input, FeatureSource* fe
   const std::size_t num_scans = max_scans && input.scan_count() ? std::min(max_scans, input.scan_count())
                                                                  : input.scan_count();
   const auto stream = input.open(features != nullptr);
+  // --realtime: each scan is taken when its stamp is due on the wall clock. One that a newer scan
+  // overtook while the odometry worked on an earlier one is skipped, as a driver's queue of one
+  // would (the odometry goes on with the newest), and counted. To see what has arrived, frames are
+  // read ahead into `ahead`: at most what comes in during one scan's registration.
+  std::optional<RealtimePacer> pacer;
+  std::deque<SensorFrame> ahead;
+  bool stream_ended = false;
+  const auto next_frame = [&](SensorFrame& out) {
+    if (!ahead.empty()) {
+      out = std::move(ahead.front());
+      ahead.pop_front();
+      return true;
+    }
+    if (!stream_ended && stream->next(out)) return true;
+    stream_ended = true;
+    return false;
+  };
+  const auto newer_scan_arrived = [&] {
+    for (const SensorFrame& f : ahead)
+      if (f.kind == SensorFrame::Kind::kScan && pacer->arrived(f.stamp)) return true;
+    while (!stream_ended && (ahead.empty() || pacer->arrived(ahead.back().stamp))) {
+      ahead.emplace_back();
+      if (!stream->next(ahead.back())) {
+        ahead.pop_back();
+        stream_ended = true;
+        break;
+      }
+      if (ahead.back().kind == SensorFrame::Kind::kScan && pacer->arrived(ahead.back().stamp)) return true;
+    }
+    return false;
+  };
   SensorFrame frame;
-  bool have = stream->next(frame);
+  bool have = next_frame(frame);
+  if (options.pipeline.realtime && have) pacer.emplace(frame.stamp);
+  double last_frame_stamp = have ? frame.stamp : 0.0;
   // T_world_odom (odometry_start_pose at the first scan), set when the first scan comes.
   Pose G = Pose::Identity(), G_inv = Pose::Identity();
   // The loop closer's correction C (odometry frame) as the map's world sees it: G C G^-1.
@@ -54,9 +88,8 @@ SlamMappingResult map_with_own_poses(const SensorInput& input, FeatureSource* fe
   };
 
   const MapInfo info = map_info_for(seq, features, options.pipeline);
-  PipelineOptions pipeline = options.pipeline;
-  pipeline.realtime = false;
-  Mapper mapper(mapper_options(seq, pipeline), SemanticMap(options.pipeline.map, info), features, pipeline.store);
+  Mapper mapper(mapper_options(seq, options.pipeline), SemanticMap(options.pipeline.map, info), features,
+                options.pipeline.store);
   SubmapCorrections corrections;
   Pose K_given = Pose::Identity();  // the correction in the poses given to the mapper
   std::size_t loops_seen = 0, optimizations_seen = 0;
@@ -67,7 +100,7 @@ SlamMappingResult map_with_own_poses(const SensorInput& input, FeatureSource* fe
   // poses): given before it, they would wait in the mapper's queue for a pose only this thread
   // can give, and a run of unreadable scans would fill the queue and stop this thread for good.
   // They wait here meanwhile (the images between two scans).
-  std::size_t si = 0, unreadable = 0, with_times = 0, deskewed = 0;
+  std::size_t si = 0, unreadable = 0, with_times = 0, deskewed = 0, overtaken = 0;
   double last_scan_stamp = -std::numeric_limits<double>::infinity();
   std::deque<ImageRecord> images;
   const auto give_images_before = [&](double stamp) {
@@ -76,7 +109,7 @@ SlamMappingResult map_with_own_poses(const SensorInput& input, FeatureSource* fe
       images.pop_front();
     }
   };
-  for (; have; have = stream->next(frame)) {
+  for (; have; have = next_frame(frame)) {
     if (frame.kind == SensorFrame::Kind::kImage) {
       // With --max-scans, the images up to the last mapped scan's stamp.
       if (max_scans && si == max_scans && frame.stamp > last_scan_stamp) break;
@@ -89,6 +122,15 @@ SlamMappingResult map_with_own_poses(const SensorInput& input, FeatureSource* fe
       G_inv = G.inverse();
     }
     last_scan_stamp = frame.stamp;
+    if (pacer) {
+      pacer->wait_for(frame.stamp);
+      last_frame_stamp = frame.stamp;
+      if (newer_scan_arrived()) {
+        ++overtaken;
+        if (progress) progress(si, num_scans, tracker.result(), stream->progress());
+        continue;
+      }
+    }
     if (!frame.error.empty()) {
       mapper.add_unreadable_scan(frame.error);
       ++unreadable;
@@ -159,6 +201,10 @@ SlamMappingResult map_with_own_poses(const SensorInput& input, FeatureSource* fe
   if (options.pipeline.deskew && options.tracking.odometry.deskew)
     report.deskew_motion = kOdometryDeskewMotion;
   report.seconds_total = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
+  if (pacer) {
+    report.scans_overtaken = overtaken;
+    report.realtime_seconds_behind = std::max(0.0, pacer->elapsed() - (last_frame_stamp - pacer->first_stamp()));
+  }
   return SlamMappingResult{std::move(map), std::move(report), tracker.take_result(), corrections.report(), G};
 }
 

@@ -14,8 +14,10 @@
 namespace slamvdb {
 
 struct SlamMappingOptions {
-  // poses and realtime are not used; store and unload_radius as in map; deskew: the map fuses the
-  // scans deskewed as the odometry deskews them (so only when tracking.odometry.deskew too)
+  // poses are not used; store and unload_radius as in map; deskew: the map fuses the scans deskewed
+  // as the odometry deskews them (so only when tracking.odometry.deskew too); realtime: scans are
+  // taken at their stamps, and one a newer scan overtook while the odometry was busy is skipped
+  // (PipelineReport::scans_overtaken)
   PipelineOptions pipeline;
   TrackingOptions tracking;
   MergeOptions merge;
