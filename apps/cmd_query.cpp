@@ -8,6 +8,7 @@
 #include "feature_options.hpp"
 #include "io_options.hpp"
 #include "option_checks.hpp"
+#include "text_encoder_option.hpp"
 #include "slamvdb/core/csv.hpp"
 #include "slamvdb/core/point_text.hpp"
 #include "slamvdb/inference/simulated_encoders.hpp"
@@ -18,6 +19,7 @@
 #include "slamvdb/io/map_pictures.hpp"
 #include "slamvdb/io/npy.hpp"
 #include "slamvdb/query/map_query.hpp"
+#include "slamvdb/query/query_terms.hpp"
 #include "slamvdb/store/map_store.hpp"
 
 namespace slamvdb::cli::cmd_query {
@@ -63,40 +65,23 @@ void check_space(const std::string& what, const std::string& model_id, const Sem
 
 Eigen::VectorXf to_vector(const std::vector<float>& v) { return Eigen::Map<const Eigen::VectorXf>(v.data(), v.size()); }
 
+// The question's terms as the library takes them (query/query_terms.hpp, shared with `slamvdb serve`):
+// .npy vectors and images are embedded here, texts and classes by build_query_vector.
 Eigen::VectorXf build_query(const Options& opt, const SemanticMap& map) {
-  std::vector<Eigen::VectorXf> positive, negative;
-  if (!opt.text.empty() || !opt.not_text.empty()) {
-    std::unique_ptr<TextEncoder> encoder;
-    if (!opt.text_model.empty()) {
-#if SLAMVDB_WITH_TORCH
-      encoder = std::make_unique<TorchTextEncoder>(opt.text_model);
-#else
-      throw Error("this slamvdb was built without TorchScript support (SLAMVDB_WITH_TORCH=OFF)");
-#endif
-    } else {
-      SimulatedEncoderConfig sim;
-      sim.dim = map.params().semantic.dim;
-      sim.seed = opt.sim_seed;
-      sim.text_gap = opt.sim_text_gap;
-      encoder = std::make_unique<SimulatedTextEncoder>(sim);
-      spdlog::warn("text is embedded by the SIMULATED text encoder {} (use --text-model for CLIP)", encoder->model_id());
-    }
+  QueryTerms terms;
+  terms.text = opt.text;
+  terms.not_text = opt.not_text;
+  terms.classes = opt.classes;
+  terms.not_classes = opt.not_classes;
+  std::unique_ptr<TextEncoder> encoder;
+  TextEmbedder embed_text;
+  if (terms.uses_text()) {
+    encoder = open_text_encoder(opt.text_model, map.params().semantic.dim, opt.sim_seed, opt.sim_text_gap);
     check_space("the text encoder", encoder->model_id(), map, opt.ignore_model_id);
-    for (const auto& t : opt.text) positive.push_back(to_vector(encoder->encode(t)));
-    for (const auto& t : opt.not_text) negative.push_back(to_vector(encoder->encode(t)));
+    embed_text = [&encoder](std::string_view text) -> Eigen::VectorXf { return to_vector(encoder->encode(text)); };
   }
-  if (!opt.classes.empty() || !opt.not_classes.empty()) {
-    const QuerySet queries = load_query_set(opt.queries);
-    check_compatible(queries, map.params().semantic.dim, map.info().model_id,
-                     opt.ignore_model_id ? ModelIdCheck::kIgnore : ModelIdCheck::kRequireMatch);
-    auto row = [&](const std::string& name) -> Eigen::VectorXf {
-      const auto k = queries.find(name);
-      if (!k) throw Error(fmt::format("{} has no class '{}'", opt.queries, name));
-      return queries.vectors.row(*k).transpose();
-    };
-    for (const auto& c : opt.classes) positive.push_back(row(c));
-    for (const auto& c : opt.not_classes) negative.push_back(row(c));
-  }
+  std::optional<QuerySet> queries;
+  if (terms.uses_classes()) queries = load_query_set(opt.queries);
   const auto read_vectors = [&](const std::vector<std::string>& files, std::vector<Eigen::VectorXf>& into) {
     for (const auto& file : files)
       for (const std::vector<float>& v : read_npy_vectors(file)) {
@@ -108,14 +93,14 @@ Eigen::VectorXf build_query(const Options& opt, const SemanticMap& map) {
         into.push_back(to_vector(v));
       }
   };
-  read_vectors(opt.vectors, positive);
-  read_vectors(opt.not_vectors, negative);
+  read_vectors(opt.vectors, terms.vectors);
+  read_vectors(opt.not_vectors, terms.not_vectors);
   if (!opt.images.empty()) {
-    std::unique_ptr<ImageEncoder> encoder;
+    std::unique_ptr<ImageEncoder> image_encoder;
     bool labels = false;
     if (!opt.image_model.empty()) {
 #if SLAMVDB_WITH_TORCH
-      encoder = std::make_unique<TorchImageEncoder>(opt.image_model);
+      image_encoder = std::make_unique<TorchImageEncoder>(opt.image_model);
 #else
       throw Error("this slamvdb was built without TorchScript support (SLAMVDB_WITH_TORCH=OFF)");
 #endif
@@ -123,19 +108,24 @@ Eigen::VectorXf build_query(const Options& opt, const SemanticMap& map) {
       SimulatedEncoderConfig sim;
       sim.dim = map.params().semantic.dim;
       sim.seed = opt.sim_seed;
-      encoder = std::make_unique<SimulatedImageEncoder>(sim);
+      image_encoder = std::make_unique<SimulatedImageEncoder>(sim);
       labels = true;
       spdlog::warn("--image is embedded by the SIMULATED image encoder from its 2D label image (use --image-model "
                    "for a network on RGB)");
     }
-    check_space("the image encoder", encoder->model_id(), map, opt.ignore_model_id);
+    check_space("the image encoder", image_encoder->model_id(), map, opt.ignore_model_id);
     for (const auto& file : opt.images) {
       ImageRecord rec;
       (labels ? rec.labels : rec.rgb) = file;
-      positive.push_back(to_vector(encoder->encode(load_image_frame(rec, !labels, labels))));
+      terms.vectors.push_back(to_vector(image_encoder->encode(load_image_frame(rec, !labels, labels))));
     }
   }
-  return composite_query(positive, negative);
+  QueryTermSources sources;
+  sources.embed_text = encoder ? &embed_text : nullptr;
+  sources.queries = queries ? &*queries : nullptr;
+  sources.queries_name = opt.queries;
+  sources.model_check = opt.ignore_model_id ? ModelIdCheck::kIgnore : ModelIdCheck::kRequireMatch;
+  return build_query_vector({map.params().semantic.dim, map.info().model_id}, terms, sources);
 }
 
 // The output's format from its extension: .csv, .ply, .png (+ .yaml) or .html; "" without output.
