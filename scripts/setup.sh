@@ -20,7 +20,8 @@ PACKAGES=(
   libspdlog-dev libfmt-dev  # logging
   libabsl-dev            # flat hash maps (voxel blocks, semantic index)
   libcli11-dev           # CLI
-  nlohmann-json3-dev     # manifests, metadata
+  nlohmann-json3-dev     # manifests, metadata, the server's JSON
+  libcpp-httplib-dev libssl-dev  # `slamvdb serve`: HTTP server (Debian builds it with OpenSSL: optional TLS)
   libyaml-cpp-dev        # transforms.yaml, ontology
   zlib1g-dev             # CLIP merge list (.gz)
   libicu-dev             # Unicode categories, case folding, NFC for the CLIP tokenizer

@@ -1,0 +1,59 @@
+#pragma once
+// Decoding of HTTP requests into the library's questions: small pure functions from text to
+// structs, so that a libFuzzer harness (fuzz/fuzz_server_requests.cpp, next session) reaches them
+// without a socket. Anything wrong is a RequestError naming the field, answered 400 (or the
+// status it carries); nothing here trusts a size, a depth or a number from the request.
+#include <cstddef>
+#include <nlohmann/json.hpp>
+#include <string>
+#include <string_view>
+
+#include "slamvdb/core/error.hpp"
+#include "slamvdb/query/map_query.hpp"
+#include "slamvdb/query/query_terms.hpp"
+
+namespace slamvdb {
+
+// The limits a request is held to (serve's options set them; README "slamvdb serve").
+struct ServerLimits {
+  std::size_t max_body_bytes = 1 << 20;  // 1 MiB: a few 512-d vectors as JSON text, with room
+  std::size_t max_top_k = 10000;         // results per answer
+  std::size_t max_terms = 32;            // texts + classes + vectors of one question
+  std::size_t max_text_bytes = 1000;     // one text term (CLIP reads 77 tokens anyway)
+};
+
+// A request the server refuses: HTTP status, the request field at fault ("" for the request as a
+// whole) and a message for a person.
+class RequestError : public Error {
+ public:
+  RequestError(int status, std::string field, const std::string& message)
+      : Error(message), status_(status), field_(std::move(field)) {}
+  int status() const { return status_; }
+  const std::string& field() const { return field_; }
+
+ private:
+  int status_;
+  std::string field_;
+};
+
+// The error body every refusal carries: {"error": {"message": ..., "field": ... or null}}.
+nlohmann::json error_json(const std::string& message, const std::string& field);
+
+// POST /api/query. Fields (docs/openapi.yaml): text, not, class, not_class (a string or an array of
+// strings), vector, not_vector (an array of `dim` numbers or an array of such arrays), top_k
+// (1..max_top_k, or 0 with a threshold: every cell at or above it, at most max_top_k), threshold
+// (-1..1), exact (boolean). Unknown fields are refused (a typo must not pass as a default).
+struct QueryRequest {
+  QueryTerms terms;
+  SearchOptions search{.top_k = 100};
+  bool exact = false;       // exact scoring asked for (today every answer is exact)
+  bool top_k_capped = false;  // top_k 0 + threshold: the answer holds at most max_top_k cells
+};
+
+QueryRequest decode_query_request(std::string_view body, int dim, const ServerLimits& limits);
+
+// A JSON object from a request body, refusing non-JSON, nesting deeper than `max_depth` (before a
+// deep document is built) and anything but an object.
+nlohmann::json parse_json_object(std::string_view body, int max_depth = 8);
+
+}  // namespace slamvdb

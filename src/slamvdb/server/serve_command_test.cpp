@@ -1,0 +1,160 @@
+// `slamvdb serve` against a real server on an ephemeral loopback port: its answers equal the CLI's
+// on the same map (query by text, class and vector, with not-terms, top_k and threshold; info
+// --json --check), and every refusal is a JSON error with the right status and field.
+#include <fmt/format.h>
+#include <gtest/gtest.h>
+
+#include <nlohmann/json.hpp>
+
+#include "slamvdb/io/npy.hpp"
+#include "slamvdb/testing/csv_reader.hpp"
+#include "slamvdb/testing/server_process.hpp"
+#include "slamvdb/testing/text_file.hpp"
+#include "slamvdb/testing/two_class_map.hpp"
+#include "slamvdb/server/httplib_include.hpp"
+
+namespace slamvdb {
+namespace {
+
+using testing::run_command;
+using testing::shell_quote;
+
+// An answer's results as the CLI's CSV writes them (query -o X.csv with --queries).
+std::vector<std::vector<std::string>> rows_of_answer(const nlohmann::json& answer) {
+  std::vector<std::vector<std::string>> rows;
+  for (const auto& r : answer.at("results")) {
+    const auto& p = r.at("position");
+    rows.push_back({fmt::format("{}", r.at("rank").get<int>()), fmt::format("{:.3f}", p[0].get<double>()),
+                    fmt::format("{:.3f}", p[1].get<double>()), fmt::format("{:.3f}", p[2].get<double>()),
+                    fmt::format("{:.6f}", r.at("score").get<float>()), fmt::format("{}", r.at("count").get<uint32_t>()),
+                    fmt::format("{:.3f}", r.at("weight").get<float>()),
+                    r.at("spread").is_null() ? "" : fmt::format("{:.6f}", r.at("spread").get<float>()),
+                    r.at("class").is_null() ? "" : r.at("class").get<std::string>(),
+                    fmt::format("{:.4f}", r.at("confidence").get<float>())});
+  }
+  return rows;
+}
+
+struct ServedMap {
+  testing::TwoClassMap f;
+  testing::ServerProcess server{SLAMVDB_CLI_PATH,
+                                {"serve", f.map.string(), "--port", "0", "--queries", f.queries.string(),
+                                 "--ignore-model-id", "--max-body", "4096"},
+                                (f.tmp.path / "serve.log").string()};
+  httplib::Client client{"127.0.0.1", server.port()};
+
+  std::string log() const { return testing::read_text_file(f.tmp.path / "serve.log"); }
+  // `slamvdb query MAP ARGS --queries Q --ignore-model-id -o out.csv`: its CSV rows without the header.
+  std::vector<std::vector<std::string>> cli_rows(const std::string& args) const {
+    const auto out = f.tmp.path / "cli.csv";
+    const auto r = run_command(f.cli("query " + shell_quote(f.map.string()) + " " + args + " --queries " +
+                                     shell_quote(f.queries.string()) + " --ignore-model-id -o " + shell_quote(out.string())));
+    EXPECT_EQ(r.exit_code, 0) << args << "\n" << r.output;
+    std::string error;
+    auto records = testing::read_csv_strict(testing::read_text_file(out), &error);
+    EXPECT_TRUE(records) << error;
+    if (!records || records->empty()) return {};
+    return {records->begin() + 1, records->end()};
+  }
+  nlohmann::json post_query(const nlohmann::json& body, int expected_status = 200) {
+    const auto res = client.Post("/api/query", body.dump(), "application/json");
+    EXPECT_TRUE(res) << "no answer; server log:\n" << log();
+    if (!res) return {};
+    EXPECT_EQ(res->status, expected_status) << body.dump() << "\n" << res->body;
+    EXPECT_EQ(res->get_header_value("Content-Type"), "application/json");
+    return nlohmann::json::parse(res->body);
+  }
+};
+
+TEST(ServeCommand, AnswersEqualTheCli) {
+  ServedMap s;
+  ASSERT_GT(s.server.port(), 0) << s.server.output() << "\n" << s.log();
+
+  const auto health = s.client.Get("/healthz");
+  ASSERT_TRUE(health);
+  EXPECT_EQ(health->status, 200);
+  const auto h = nlohmann::json::parse(health->body);
+  EXPECT_EQ(h.at("status"), "ok");
+  EXPECT_EQ(h.at("semantic_cells").get<std::size_t>(), s.f.semantic_cells);
+  EXPECT_TRUE(h.at("encoder").at("simulated").get<bool>());  // SIMULATED, said so in every answer
+
+  // /api/info is `info --json --check` of the file, plus the encoder.
+  const auto info = s.client.Get("/api/info");
+  ASSERT_TRUE(info);
+  ASSERT_EQ(info->status, 200);
+  auto served_info = nlohmann::json::parse(info->body);
+  EXPECT_EQ(served_info.at("encoder"), h.at("encoder"));
+  served_info.erase("encoder");
+  const auto cli_info = run_command(shell_quote(SLAMVDB_CLI_PATH) + " info " + shell_quote(s.f.map.string()) +
+                                    " --json --check 2>/dev/null");
+  ASSERT_EQ(cli_info.exit_code, 0);
+  EXPECT_EQ(served_info, nlohmann::json::parse(cli_info.output));
+
+  // Text (positive and negative), class and vector questions, top_k and threshold: the CLI's rows.
+  const float v[4] = {0.8f, 0.3f, 0.1f, 0.f};
+  const auto npy = s.f.tmp.path / "v.npy";
+  write_npy_array(npy, v, {4});
+  const std::vector<std::pair<nlohmann::json, std::string>> cases = {
+      {{{"text", "grass"}, {"top_k", 7}}, "--text grass --top-k 7"},
+      {{{"text", {"grass", "dirt"}}, {"not", "tree"}, {"top_k", 12}}, "--text grass --text dirt --not tree --top-k 12"},
+      {{{"class", "smooth"}, {"not_class", "rough"}, {"top_k", 5}}, "--class smooth --not-class rough --top-k 5"},
+      {{{"vector", {0.8, 0.3, 0.1, 0.0}}, {"top_k", 9}}, "--vector " + shell_quote(npy.string()) + " --top-k 9"},
+      {{{"class", "rough"}, {"top_k", 0}, {"threshold", 0.5}}, "--class rough --top-k 0 --threshold 0.5"},
+  };
+  for (const auto& [body, args] : cases) {
+    const nlohmann::json answer = s.post_query(body);
+    ASSERT_TRUE(answer.contains("results")) << body.dump();
+    EXPECT_TRUE(answer.at("encoder").at("simulated").get<bool>());
+    const auto expected = s.cli_rows(args);
+    ASSERT_FALSE(expected.empty()) << args;
+    EXPECT_EQ(rows_of_answer(answer), expected) << body.dump() << " vs " << args;
+    EXPECT_EQ(answer.at("count").get<std::size_t>(), expected.size());
+  }
+  EXPECT_EQ(s.server.stop(SIGTERM), 0) << s.log();
+}
+
+TEST(ServeCommand, RefusalsAreJsonErrorsNamingTheField) {
+  ServedMap s;
+  ASSERT_GT(s.server.port(), 0) << s.server.output() << "\n" << s.log();
+  const auto expect_error = [&](const httplib::Result& res, int status, const nlohmann::json& field) {
+    ASSERT_TRUE(res);
+    EXPECT_EQ(res->status, status) << res->body;
+    const auto j = nlohmann::json::parse(res->body, nullptr, false);
+    ASSERT_TRUE(j.is_object() && j.contains("error")) << res->body;
+    EXPECT_FALSE(j["error"].at("message").get<std::string>().empty());
+    EXPECT_EQ(j["error"].at("field"), field) << res->body;
+  };
+  const auto post = [&](const std::string& body) { return s.client.Post("/api/query", body, "application/json"); };
+  expect_error(post("{\"text\": "), 400, nullptr);                       // not JSON
+  expect_error(post("[1, 2]"), 400, nullptr);                            // not an object
+  expect_error(post(std::string(20, '[') + std::string(20, ']')), 400, nullptr);  // too deep
+  expect_error(post(R"({"txt": "grass"})"), 400, "txt");                 // unknown field
+  expect_error(post(R"({"text": "grass", "top_k": -1})"), 400, "top_k");
+  expect_error(post(R"({"text": "grass", "top_k": 0})"), 400, "top_k");  // 0 needs a threshold
+  expect_error(post(R"({"text": "grass", "threshold": 2})"), 400, "threshold");
+  expect_error(post(R"({"text": 5})"), 400, "text");
+  expect_error(post(R"({"text": "no such words"})"), 400, "text");       // the encoder knows no class in it
+  expect_error(post(R"({"class": "gravel"})"), 400, "class");            // not in the query set
+  expect_error(post(R"({"vector": [1, 2]})"), 400, "vector");            // the map's embeddings are 4-d
+  expect_error(post(R"({"not": "grass"})"), 400, "text");                // no positive term
+  expect_error(post(R"({"vector": [1, 0, 0, 0], "not_vector": [1, 0, 0, 0]})"), 400, "vector");  // cancel out
+  expect_error(post("{\"text\": \"" + std::string(5000, 'a') + "\"}"), 413, "body");  // --max-body 4096
+  expect_error(s.client.Get("/api/nothing"), 404, nullptr);
+  expect_error(s.client.Get("/api/query"), 405, nullptr);
+  expect_error(s.client.Delete("/api/info"), 405, nullptr);
+  // Still serving after every refusal.
+  const auto health = s.client.Get("/healthz");
+  ASSERT_TRUE(health);
+  EXPECT_EQ(health->status, 200);
+  EXPECT_EQ(s.server.stop(SIGTERM), 0) << s.log();
+}
+
+TEST(ServeCommand, RefusesNonLoopbackAddressesWithoutAuthentication) {
+  const testing::TwoClassMap f;
+  const auto r = run_command(f.cli("serve " + shell_quote(f.map.string()) + " --bind 0.0.0.0 --port 0"));
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_NE(r.output.find("--bind 0.0.0.0"), std::string::npos) << r.output;
+}
+
+}  // namespace
+}  // namespace slamvdb
