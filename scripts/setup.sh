@@ -26,6 +26,7 @@ PACKAGES=(
   zlib1g-dev             # CLIP merge list (.gz)
   libicu-dev             # Unicode categories, case folding, NFC for the CLIP tokenizer
   python3-regex          # test oracle for the CLIP tokenizer
+  python3-yaml           # the serve test reads docs/openapi.yaml
   libgtest-dev libgmock-dev  # tests
   libbenchmark-dev       # benchmarks
   liboctomap-dev         # side-by-side occupancy benchmark baseline
