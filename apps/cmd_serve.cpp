@@ -97,7 +97,7 @@ void run(const Options& opt) {
 void add(CLI::App& root) {
   auto opt = std::make_shared<Options>();
   auto* cmd = root.add_subcommand(
-      "serve", "Serve a map over HTTP (read-only JSON API: /healthz, /api/info, POST /api/query; README \"slamvdb serve\")");
+      "serve", "Serve a map over HTTP (read-only JSON API: /healthz, /api/info, /api/submaps, POST /api/query, POST /api/at; README \"slamvdb serve\")");
   cmd->add_option("map", opt->map, "Map file (.svdb)")->required()->check(CLI::ExistingFile);
   cmd->add_option("--bind", opt->bind, "Address to listen on (loopback only: 127.0.0.1, ::1 or localhost)")
       ->capture_default_str();
@@ -124,6 +124,9 @@ void add(CLI::App& root) {
   cmd->add_option("--max-top-k", opt->limits.max_top_k, "Largest top_k of a query (and most results of one answer)")
       ->capture_default_str()
       ->check(integer_range(1, 1'000'000));
+  cmd->add_option("--max-points", opt->limits.max_points, "Most points of one POST /api/at")
+      ->capture_default_str()
+      ->check(integer_range(1, 10'000'000));
   add_option_checks(cmd, [opt] {
     if (!is_loopback(opt->bind))
       usage_error(fmt::format("--bind {}: serve listens on loopback only (127.0.0.1, ::1, localhost): the API has no "

@@ -74,6 +74,12 @@ void MapServer::Impl::add_routes() {
        }},
       {"/api/info", "GET",
        [this](const httplib::Request&, httplib::Response& res) { send_json(res, 200, answer_info(context)); }},
+      {"/api/submaps", "GET",
+       [this](const httplib::Request&, httplib::Response& res) { send_json(res, 200, answer_submaps(context)); }},
+      {"/api/at", "POST",
+       [this](const httplib::Request& req, httplib::Response& res) {
+         send_json(res, 200, answer_at(context, decode_at_request(req.body, options.limits)));
+       }},
       {"/api/query", "POST",
        [this](const httplib::Request& req, httplib::Response& res) {
          const QueryRequest request = decode_query_request(req.body, map->space().dim, options.limits);

@@ -87,6 +87,37 @@ nlohmann::json answer_query(const AnswerContext& context, const QueryRequest& re
           {"results", std::move(rows)}};
 }
 
+nlohmann::json answer_at(const AnswerContext& context, const AtRequest& request) {
+  const std::vector<PointQuery> answers =
+      context.map->at(request.points, context.queries, context.classify, context.model_check);
+  nlohmann::json rows = nlohmann::json::array();
+  std::size_t found = 0;
+  for (const PointQuery& a : answers) {
+    found += a.found;
+    const bool has_class = a.match && a.match->class_index != kNoClass;
+    nlohmann::json row = {
+        {"point", {a.point_world.x(), a.point_world.y(), a.point_world.z()}},
+        {"found", a.found},
+        {"cell", a.found ? nlohmann::json({a.cell_centre.x(), a.cell_centre.y(), a.cell_centre.z()}) : nlohmann::json()},
+        {"count", a.count},
+        {"class", has_class ? nlohmann::json(context.queries->names[static_cast<std::size_t>(a.match->class_index)])
+                            : nlohmann::json()},
+        {"score", a.match ? nlohmann::json(a.match->score) : nlohmann::json()},
+        {"margin", a.match ? nlohmann::json(a.match->margin) : nlohmann::json()},
+        {"weight", a.found ? nlohmann::json(a.stats.weight) : nlohmann::json()},
+        {"spread", a.found && a.stats.known() && a.stats.weight > 0 ? nlohmann::json(a.stats.spread / a.stats.weight)
+                                                                    : nlohmann::json()},
+        {"confidence", a.match ? nlohmann::json(a.confidence) : nlohmann::json()}};
+    if (request.embedding) row["embedding"] = a.found ? nlohmann::json(a.embedding) : nlohmann::json();
+    rows.push_back(std::move(row));
+  }
+  return {{"encoder", encoder_json(context)}, {"count", answers.size()}, {"found", found}, {"results", std::move(rows)}};
+}
+
+nlohmann::json answer_submaps(const AnswerContext& context) {
+  return {{"encoder", encoder_json(context)}, {"submaps", context.map->info().at("submaps")}};
+}
+
 nlohmann::json answer_info(const AnswerContext& context) {
   nlohmann::json j = context.map->info();
   j["encoder"] = encoder_json(context);

@@ -32,6 +32,13 @@ nlohmann::json encoder_json(const AnswerContext& context);
 // Throws RequestError for a question the map cannot answer (unknown text or class, ...).
 nlohmann::json answer_query(const AnswerContext& context, const QueryRequest& request);
 
+// POST /api/at: what the map holds at each point, the rows `query --at -o X.csv` writes (and the
+// cell's mean embedding when asked).
+nlohmann::json answer_at(const AnswerContext& context, const AtRequest& request);
+
+// GET /api/submaps: id, anchor, time range and counts of every submap (/api/info's "submaps").
+nlohmann::json answer_submaps(const AnswerContext& context);
+
 // GET /api/info: `slamvdb info --json --check` of the map, with the encoder.
 nlohmann::json answer_info(const AnswerContext& context);
 

@@ -21,6 +21,11 @@ void SemanticMapService::classify(const QuerySet& queries, std::span<ScoredCell>
   classify_results(*map_, queries, results, options, model_check);
 }
 
+std::vector<PointQuery> SemanticMapService::at(std::span<const Vec3d> points_world, const QuerySet* queries,
+                                               const ClassifyOptions& options, ModelIdCheck model_check) const {
+  return query_points(*map_, points_world, queries, options, model_check);
+}
+
 std::shared_ptr<SemanticMapService> open_map_file_service(const std::filesystem::path& path) {
   const MapFileSummary summary = read_map_summary(path);
   auto map = std::make_shared<const SemanticMap>(load_map(path));

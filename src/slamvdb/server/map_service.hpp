@@ -26,6 +26,9 @@ class MapService {
   virtual nlohmann::json info() const = 0;
   // similarity_search over the map (query/map_query.hpp), the CLI's function.
   virtual std::vector<ScoredCell> search(std::span<const float> query, const SearchOptions& options) const = 0;
+  // query_points over the map (what `query --at` answers), with classes when `queries` is given.
+  virtual std::vector<PointQuery> at(std::span<const Vec3d> points_world, const QuerySet* queries,
+                                     const ClassifyOptions& options, ModelIdCheck model_check) const = 0;
   // classify_results over the map, for answers that carry a class (a query set given to the server).
   virtual void classify(const QuerySet& queries, std::span<ScoredCell> results, const ClassifyOptions& options,
                         ModelIdCheck model_check) const = 0;
@@ -42,6 +45,8 @@ class SemanticMapService final : public MapService {
   std::vector<ScoredCell> search(std::span<const float> query, const SearchOptions& options) const override;
   void classify(const QuerySet& queries, std::span<ScoredCell> results, const ClassifyOptions& options,
                 ModelIdCheck model_check) const override;
+  std::vector<PointQuery> at(std::span<const Vec3d> points_world, const QuerySet* queries,
+                             const ClassifyOptions& options, ModelIdCheck model_check) const override;
 
  private:
   std::shared_ptr<const SemanticMap> map_;

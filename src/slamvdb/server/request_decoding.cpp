@@ -114,4 +114,29 @@ QueryRequest decode_query_request(std::string_view body, int dim, const ServerLi
   return r;
 }
 
+AtRequest decode_at_request(std::string_view body, const ServerLimits& limits) {
+  const nlohmann::json j = parse_json_object(body);
+  for (const auto& [key, value] : j.items())
+    if (key != "points" && key != "embedding") throw RequestError(400, key, fmt::format("unknown field '{}'", key));
+  if (!j.contains("points")) throw RequestError(400, "points", "give 'points': an array of [x, y, z]");
+  const auto& points = j["points"];
+  if (!points.is_array() || points.empty() || points.size() > limits.max_points)
+    throw RequestError(400, "points", fmt::format("'points' is an array of 1..{} points [x, y, z]", limits.max_points));
+  AtRequest r;
+  r.points.reserve(points.size());
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    const auto& p = points[i];
+    if (!p.is_array() || p.size() != 3 || !p[0].is_number() || !p[1].is_number() || !p[2].is_number())
+      throw RequestError(400, "points", fmt::format("'points'[{}] is not [x, y, z] (three numbers)", i));
+    const Vec3d v(p[0].get<double>(), p[1].get<double>(), p[2].get<double>());
+    if (!v.allFinite()) throw RequestError(400, "points", fmt::format("'points'[{}] is not finite", i));
+    r.points.push_back(v);
+  }
+  if (j.contains("embedding")) {
+    if (!j["embedding"].is_boolean()) throw RequestError(400, "embedding", "'embedding' is true or false");
+    r.embedding = j["embedding"].get<bool>();
+  }
+  return r;
+}
+
 }  // namespace slamvdb

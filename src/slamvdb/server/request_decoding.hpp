@@ -16,10 +16,12 @@ namespace slamvdb {
 
 // The limits a request is held to (serve's options set them; README "slamvdb serve").
 struct ServerLimits {
-  std::size_t max_body_bytes = 1 << 20;  // 1 MiB: a few 512-d vectors as JSON text, with room
+  // 4 MiB: 100 000 points of /api/at as JSON (about 20-30 bytes each), or many 512-d vectors.
+  std::size_t max_body_bytes = 4 << 20;
   std::size_t max_top_k = 10000;         // results per answer
   std::size_t max_terms = 32;            // texts + classes + vectors of one question
   std::size_t max_text_bytes = 1000;     // one text term (CLIP reads 77 tokens anyway)
+  std::size_t max_points = 100000;       // points of one POST /api/at
 };
 
 // A request the server refuses: HTTP status, the request field at fault ("" for the request as a
@@ -51,6 +53,15 @@ struct QueryRequest {
 };
 
 QueryRequest decode_query_request(std::string_view body, int dim, const ServerLimits& limits);
+
+// POST /api/at. Fields: points (an array of [x, y, z], finite numbers; 1..max_points of them),
+// embedding (boolean, default false: the cell's count-weighted mean embedding in each answer).
+struct AtRequest {
+  std::vector<Vec3d> points;
+  bool embedding = false;
+};
+
+AtRequest decode_at_request(std::string_view body, const ServerLimits& limits);
 
 // A JSON object from a request body, refusing non-JSON, nesting deeper than `max_depth` (before a
 // deep document is built) and anything but an object.

@@ -82,6 +82,33 @@ TEST(RequestDecoding, RefusalsNameTheField) {
   EXPECT_EQ(refused_field(R"({"text": ["a", "b"]})", limits), "accepted");
 }
 
+TEST(RequestDecoding, AtFieldsAndLimits) {
+  const AtRequest r = decode_at_request(R"({"points": [[1, 2, 3], [-4.5, 0, 1e3]], "embedding": true})", {});
+  ASSERT_EQ(r.points.size(), 2u);
+  EXPECT_EQ(r.points[1], Vec3d(-4.5, 0, 1000));
+  EXPECT_TRUE(r.embedding);
+  EXPECT_FALSE(decode_at_request(R"({"points": [[0, 0, 0]]})", {}).embedding);
+  ServerLimits limits;
+  limits.max_points = 2;
+  const auto field_of = [&](const std::string& body) -> std::string {
+    try {
+      decode_at_request(body, limits);
+      return "accepted";
+    } catch (const RequestError& e) {
+      return e.field();
+    }
+  };
+  EXPECT_EQ(field_of(R"({"points": [[0, 0, 0], [1, 1, 1]]})"), "accepted");
+  EXPECT_EQ(field_of(R"({"points": [[0, 0, 0], [1, 1, 1], [2, 2, 2]]})"), "points");
+  EXPECT_EQ(field_of(R"({"points": []})"), "points");
+  EXPECT_EQ(field_of(R"({"points": [[0, 0]]})"), "points");
+  EXPECT_EQ(field_of(R"({"points": [[0, 0, "1"]]})"), "points");
+  EXPECT_NE(field_of(R"({"points": [[0, 0, 1e400]]})"), "accepted");  // not a finite double
+  EXPECT_EQ(field_of(R"({})"), "points");
+  EXPECT_EQ(field_of(R"({"points": [[0, 0, 0]], "embedding": 1})"), "embedding");
+  EXPECT_EQ(field_of(R"({"points": [[0, 0, 0]], "xyz": 1})"), "xyz");
+}
+
 TEST(RequestDecoding, ErrorBody) {
   EXPECT_EQ(error_json("bad", "top_k").dump(), R"({"error":{"field":"top_k","message":"bad"}})");
   EXPECT_TRUE(error_json("bad", "")["error"]["field"].is_null());

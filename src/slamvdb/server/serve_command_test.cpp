@@ -4,6 +4,7 @@
 #include <fmt/format.h>
 #include <gtest/gtest.h>
 
+#include <array>
 #include <nlohmann/json.hpp>
 
 #include "slamvdb/io/npy.hpp"
@@ -113,6 +114,73 @@ TEST(ServeCommand, AnswersEqualTheCli) {
   EXPECT_EQ(s.server.stop(SIGTERM), 0) << s.log();
 }
 
+// /api/at's rows as the CLI's `query --at -o X.csv` writes them (with --queries).
+std::vector<std::vector<std::string>> rows_of_at_answer(const nlohmann::json& answer) {
+  const auto num = [](const nlohmann::json& v, const char* format) {
+    return v.is_null() ? std::string() : fmt::format(fmt::runtime(format), v.get<double>());
+  };
+  std::vector<std::vector<std::string>> rows;
+  for (const auto& r : answer.at("results")) {
+    const auto& p = r.at("point");
+    const bool found = r.at("found").get<bool>();
+    const auto& c = r.at("cell");
+    rows.push_back({fmt::format("{}", p[0].get<double>()), fmt::format("{}", p[1].get<double>()),
+                    fmt::format("{}", p[2].get<double>()), found ? "1" : "0",
+                    found ? fmt::format("{:.3f}", c[0].get<double>()) : "0.000",
+                    found ? fmt::format("{:.3f}", c[1].get<double>()) : "0.000",
+                    found ? fmt::format("{:.3f}", c[2].get<double>()) : "0.000",
+                    fmt::format("{}", r.at("count").get<uint32_t>()),
+                    r.at("class").is_null() ? "" : r.at("class").get<std::string>(),
+                    num(r.at("score"), "{:.6f}"), num(r.at("margin"), "{:.6f}"), num(r.at("weight"), "{:.3f}"),
+                    num(r.at("spread"), "{:.6f}"), num(r.at("confidence"), "{:.4f}")});
+  }
+  return rows;
+}
+
+TEST(ServeCommand, AtAndSubmapsEqualTheCli) {
+  ServedMap s;
+  ASSERT_GT(s.server.port(), 0) << s.server.output() << "\n" << s.log();
+  // Points on both classes' ground, one in the air (no cell) and one far away.
+  const std::vector<std::array<double, 3>> points = {{-2.1, 1.3, 0.05}, {2.6, -0.4, 0.0}, {0.1, 0.1, 3.0}, {100, 100, 100}};
+  nlohmann::json body = {{"points", nlohmann::json::array()}};
+  std::string at_args;
+  for (const auto& p : points) {
+    body["points"].push_back({p[0], p[1], p[2]});
+    at_args += fmt::format(" --at {},{},{}", p[0], p[1], p[2]);
+  }
+  const auto res = s.client.Post("/api/at", body.dump(), "application/json");
+  ASSERT_TRUE(res) << s.log();
+  ASSERT_EQ(res->status, 200) << res->body;
+  const auto answer = nlohmann::json::parse(res->body);
+  EXPECT_EQ(answer.at("count").get<std::size_t>(), points.size());
+  EXPECT_EQ(answer.at("found").get<std::size_t>(), 2u);
+  const auto out = s.f.tmp.path / "at.csv";
+  const auto r = run_command(s.f.cli("query " + shell_quote(s.f.map.string()) + at_args + " --queries " +
+                                     shell_quote(s.f.queries.string()) + " --ignore-model-id -o " + shell_quote(out.string())));
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  std::string error;
+  const auto records = testing::read_csv_strict(testing::read_text_file(out), &error);
+  ASSERT_TRUE(records) << error;
+  EXPECT_EQ(rows_of_at_answer(answer), std::vector<std::vector<std::string>>(records->begin() + 1, records->end()));
+  // With embeddings: the cell's mean (class 0's e0 at x < 0), nothing where no cell is.
+  body["embedding"] = true;
+  const auto with = s.client.Post("/api/at", body.dump(), "application/json");
+  ASSERT_TRUE(with);
+  const auto e = nlohmann::json::parse(with->body).at("results");
+  EXPECT_NEAR(e[0].at("embedding")[0].get<double>(), 1.0, 1e-3);
+  EXPECT_TRUE(e[2].at("embedding").is_null());
+
+  // /api/submaps: what info --json says of each submap.
+  const auto submaps = s.client.Get("/api/submaps");
+  ASSERT_TRUE(submaps);
+  ASSERT_EQ(submaps->status, 200);
+  const auto cli_info = run_command(shell_quote(SLAMVDB_CLI_PATH) + " info " + shell_quote(s.f.map.string()) +
+                                    " --json 2>/dev/null");
+  ASSERT_EQ(cli_info.exit_code, 0);
+  EXPECT_EQ(nlohmann::json::parse(submaps->body).at("submaps"), nlohmann::json::parse(cli_info.output).at("submaps"));
+  EXPECT_EQ(s.server.stop(SIGTERM), 0) << s.log();
+}
+
 TEST(ServeCommand, RefusalsAreJsonErrorsNamingTheField) {
   ServedMap s;
   ASSERT_GT(s.server.port(), 0) << s.server.output() << "\n" << s.log();
@@ -139,6 +207,11 @@ TEST(ServeCommand, RefusalsAreJsonErrorsNamingTheField) {
   expect_error(post(R"({"not": "grass"})"), 400, "text");                // no positive term
   expect_error(post(R"({"vector": [1, 0, 0, 0], "not_vector": [1, 0, 0, 0]})"), 400, "vector");  // cancel out
   expect_error(post("{\"text\": \"" + std::string(5000, 'a') + "\"}"), 413, "body");  // --max-body 4096
+  const auto post_at = [&](const std::string& body) { return s.client.Post("/api/at", body, "application/json"); };
+  expect_error(post_at(R"({"points": []})"), 400, "points");
+  expect_error(post_at(R"({"points": [[1, 2]]})"), 400, "points");
+  expect_error(post_at(R"({"points": [[1, 2, 3]], "embedding": "yes"})"), 400, "embedding");
+  expect_error(post_at(R"({"point": [[1, 2, 3]]})"), 400, "point");
   expect_error(s.client.Get("/api/nothing"), 404, nullptr);
   expect_error(s.client.Get("/api/query"), 405, nullptr);
   expect_error(s.client.Delete("/api/info"), 405, nullptr);
