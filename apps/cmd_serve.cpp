@@ -10,6 +10,7 @@
 
 #include <cerrno>
 #include <cstdio>
+#include <fstream>
 #include <thread>
 
 #include "command_registry.hpp"
@@ -22,16 +23,16 @@ namespace slamvdb::cli::cmd_serve {
 namespace {
 
 struct Options {
-  std::string map, bind = "127.0.0.1", queries, text_model;
+  std::string map, bind = "127.0.0.1", queries, text_model, token_file, tls_cert, tls_key;
   int port = 8080;
   uint64_t sim_seed = 1;
   float sim_text_gap = 0.f;
-  bool ignore_model_id = false, no_void_rule = false, no_text = false;
+  bool ignore_model_id = false, no_void_rule = false, no_text = false, insecure_no_auth = false;
   ServerLimits limits;
 };
 
-// Loopback only until bearer tokens exist (the API has no authentication yet): a map must not be
-// readable by the whole network because of a typo in --bind.
+// Another address than loopback needs --token or an explicit --insecure-no-auth: a map must not
+// be readable by the whole network because of a typo in --bind.
 // Written by the signal handler, read by run() (see there).
 int stop_pipe[2] = {-1, -1};
 
@@ -39,7 +40,21 @@ bool is_loopback(const std::string& address) {
   return address == "localhost" || address == "::1" || address.rfind("127.", 0) == 0;
 }
 
+// The bearer token from its file: the first line, without surrounding blanks; at least 16
+// characters (a short token is guessed).
+std::string read_token(const std::string& file) {
+  std::ifstream in(file);
+  std::string token;
+  if (!in || !std::getline(in, token)) throw Error(fmt::format("--token {}: cannot read a line", file));
+  const auto first = token.find_first_not_of(" \t\r");
+  const auto last = token.find_last_not_of(" \t\r");
+  token = first == std::string::npos ? "" : token.substr(first, last - first + 1);
+  if (token.size() < 16) throw Error(fmt::format("--token {}: the token has {} characters; use at least 16", file, token.size()));
+  return token;
+}
+
 void run(const Options& opt) {
+  const std::string token = opt.token_file.empty() ? "" : read_token(opt.token_file);
   auto map = open_map_file_service(opt.map);
   std::unique_ptr<TextEmbeddingCache> text;
   if (!opt.no_text) {
@@ -60,18 +75,15 @@ void run(const Options& opt) {
   options.classify.void_to_second_best = !opt.no_void_rule;
   options.model_check = opt.ignore_model_id ? ModelIdCheck::kIgnore : ModelIdCheck::kRequireMatch;
   options.queries_name = opt.queries;
+  options.token = token;
+  options.tls_cert = opt.tls_cert;
+  options.tls_key = opt.tls_key;
   MapServer server(map, std::move(text), std::move(queries), options);
 
-  const int port = server.bind();
-  // A line of stdout names the address (with --port 0, the port the system chose); scripts and tests
-  // read the port from it.
-  fmt::print("serving {} on http://{}:{}/ ({} semantic voxels)\n", opt.map,
-             opt.bind.find(':') != std::string::npos ? "[" + opt.bind + "]" : opt.bind, port,
-             map->semantic_cells());
-  std::fflush(stdout);
   // SIGINT / SIGTERM end the server cleanly. The handler only writes a byte to a pipe (async-signal
   // safe, whichever thread the signal lands on: TBB's and the server's threads exist already); this
-  // thread waits for it and stops the server outside any handler.
+  // thread waits for it and stops the server outside any handler. Installed before the address is
+  // printed: whoever reads it may signal at once.
   if (pipe(stop_pipe) != 0) throw Error("serve: cannot create the stop pipe");
   struct sigaction on_stop {};
   on_stop.sa_handler = [](int signal) {
@@ -81,6 +93,13 @@ void run(const Options& opt) {
   sigemptyset(&on_stop.sa_mask);
   sigaction(SIGINT, &on_stop, nullptr);
   sigaction(SIGTERM, &on_stop, nullptr);
+  const int port = server.bind();
+  // A line of stdout names the address (with --port 0, the port the system chose); scripts and tests
+  // read the port from it.
+  fmt::print("serving {} on {}://{}:{}/ ({} semantic voxels)\n", opt.map, opt.tls_cert.empty() ? "http" : "https",
+             opt.bind.find(':') != std::string::npos ? "[" + opt.bind + "]" : opt.bind, port,
+             map->semantic_cells());
+  std::fflush(stdout);
   std::thread serving([&server] {
     server.run();
     const char byte = 0;  // the server ended by itself: let the waiting thread go on
@@ -97,10 +116,21 @@ void run(const Options& opt) {
 void add(CLI::App& root) {
   auto opt = std::make_shared<Options>();
   auto* cmd = root.add_subcommand(
-      "serve", "Serve a map over HTTP (read-only JSON API: /healthz, /api/info, /api/submaps, POST /api/query, POST /api/at; README \"slamvdb serve\")");
+      "serve", "Serve a map over HTTP (read-only JSON API: /healthz, /metrics, /api/info, /api/submaps, POST /api/query, POST /api/at; README \"slamvdb serve\")");
   cmd->add_option("map", opt->map, "Map file (.svdb)")->required()->check(CLI::ExistingFile);
-  cmd->add_option("--bind", opt->bind, "Address to listen on (loopback only: 127.0.0.1, ::1 or localhost)")
+  cmd->add_option("--bind", opt->bind,
+                  "Address to listen on; another than loopback (127.0.0.1, ::1, localhost) needs --token or "
+                  "--insecure-no-auth")
       ->capture_default_str();
+  cmd->add_option("--token", opt->token_file,
+                  "File whose first line is a bearer token (16 characters or more) every route but /healthz requires: "
+                  "\"Authorization: Bearer TOKEN\"")
+      ->check(CLI::ExistingFile);
+  cmd->add_flag("--insecure-no-auth", opt->insecure_no_auth,
+                "Serve another address than loopback without a token (anyone who reaches it reads the map)");
+  cmd->add_option("--tls-cert", opt->tls_cert, "TLS: the certificate (chain) as PEM; needs --tls-key")
+      ->check(CLI::ExistingFile);
+  cmd->add_option("--tls-key", opt->tls_key, "TLS: the certificate's private key as PEM")->check(CLI::ExistingFile);
   cmd->add_option("--port", opt->port, "Port (0: a free one, printed in the line \"serving MAP on http://HOST:PORT/\")")
       ->capture_default_str()
       ->check(integer_range(0, 65535));
@@ -127,16 +157,23 @@ void add(CLI::App& root) {
   cmd->add_option("--max-points", opt->limits.max_points, "Most points of one POST /api/at")
       ->capture_default_str()
       ->check(integer_range(1, 10'000'000));
+  cmd->add_option("--max-concurrent", opt->limits.max_concurrent,
+                  "Requests answered at once; more get 503 + Retry-After at once (/healthz and /metrics always answer)")
+      ->capture_default_str()
+      ->check(integer_range(1, 4096));
   add_option_checks(cmd, [opt] {
-    if (!is_loopback(opt->bind))
-      usage_error(fmt::format("--bind {}: serve listens on loopback only (127.0.0.1, ::1, localhost): the API has no "
-                              "authentication yet",
+    if (!is_loopback(opt->bind) && opt->token_file.empty() && !opt->insecure_no_auth)
+      usage_error(fmt::format("--bind {}: another address than loopback needs --token FILE (or --insecure-no-auth)",
                               opt->bind));
+    if (opt->tls_cert.empty() != opt->tls_key.empty()) usage_error("--tls-cert and --tls-key go together");
   });
   auto io = std::make_shared<IoOptions>(cmd);
   io->input("map", opt->map);
   io->input("--queries", opt->queries);
   io->input("--text-model", opt->text_model);
+  io->input("--token", opt->token_file);
+  io->input("--tls-cert", opt->tls_cert);
+  io->input("--tls-key", opt->tls_key);
   cmd->callback([opt, io] {
     io->check();
     run(*opt);

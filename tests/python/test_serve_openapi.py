@@ -135,6 +135,10 @@ def call(base, method, path, body=None):
 @pytest.mark.parametrize("method,path,body,status", [
     ("GET", "/healthz", None, 200),
     ("GET", "/api/info", None, 200),
+    ("GET", "/api/submaps", None, 200),
+    ("POST", "/api/at", {"points": [[0.5, 0.5, 0.05], [50, 50, 50]], "embedding": True}, 200),
+    ("POST", "/api/at", {"points": [[0.5, 0.5]]}, 400),
+    ("PUT", "/api/at", None, 405),
     ("POST", "/api/query", {"text": "grass", "top_k": 5}, 200),
     ("POST", "/api/query", {"text": ["grass", "dirt"], "not": "tree", "top_k": 0, "threshold": -1, "exact": True}, 200),
     ("POST", "/api/query", {"vector": [[0.0] * 3 + [1.0] + [0.0] * 12], "top_k": 3}, 200),

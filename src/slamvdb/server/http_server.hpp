@@ -1,7 +1,7 @@
 #pragma once
-// `slamvdb serve`'s HTTP server (cpp-httplib): routes, JSON errors, limits. Read-only: no route
-// changes the map or a file. Bound to loopback by default; the command refuses other addresses
-// without a token (next session: --token / --insecure-no-auth, TLS).
+// `slamvdb serve`'s HTTP server (cpp-httplib): routes, JSON errors, limits, metrics, bearer
+// tokens, optional TLS. Read-only: no route changes the map or a file. Bound to loopback by
+// default; the command refuses other addresses without a token or --insecure-no-auth.
 #include <memory>
 #include <optional>
 #include <string>
@@ -17,6 +17,11 @@ struct ServerOptions {
   ClassifyOptions classify{};
   ModelIdCheck model_check = ModelIdCheck::kRequireMatch;
   std::string queries_name = "the server's query set";
+  // A bearer token every route but /healthz requires ("Authorization: Bearer TOKEN"), compared in
+  // constant time; empty: none (the command allows that on loopback or with --insecure-no-auth).
+  std::string token;
+  // TLS (both or neither): PEM files of the certificate (chain) and its private key.
+  std::string tls_cert, tls_key;
 };
 
 class MapServer {

@@ -22,6 +22,9 @@ struct ServerLimits {
   std::size_t max_terms = 32;            // texts + classes + vectors of one question
   std::size_t max_text_bytes = 1000;     // one text term (CLIP reads 77 tokens anyway)
   std::size_t max_points = 100000;       // points of one POST /api/at
+  // Requests answered at once; more are refused with 503 + Retry-After at once rather than queued
+  // without bound (/healthz and /metrics are never refused, so monitoring sees a busy server).
+  std::size_t max_concurrent = 32;
 };
 
 // A request the server refuses: HTTP status, the request field at fault ("" for the request as a

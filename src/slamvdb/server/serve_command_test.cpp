@@ -1,10 +1,12 @@
 // `slamvdb serve` against a real server on an ephemeral loopback port: its answers equal the CLI's
-// on the same map (query by text, class and vector, with not-terms, top_k and threshold; info
-// --json --check), and every refusal is a JSON error with the right status and field.
+// on the same map (query by text, class and vector, with not-terms, top_k and threshold; --at;
+// info --json --check), every refusal is a JSON error with the right status and field, a token
+// guards the routes, TLS serves, and /metrics counts what was asked.
 #include <fmt/format.h>
 #include <gtest/gtest.h>
 
 #include <array>
+#include <fstream>
 #include <nlohmann/json.hpp>
 
 #include "slamvdb/io/npy.hpp"
@@ -226,7 +228,122 @@ TEST(ServeCommand, RefusesNonLoopbackAddressesWithoutAuthentication) {
   const testing::TwoClassMap f;
   const auto r = run_command(f.cli("serve " + shell_quote(f.map.string()) + " --bind 0.0.0.0 --port 0"));
   EXPECT_EQ(r.exit_code, 2) << r.output;
-  EXPECT_NE(r.output.find("--bind 0.0.0.0"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("--bind 0.0.0.0: another address than loopback needs --token FILE"), std::string::npos)
+      << r.output;
+  // A short token is refused before the map is served.
+  const auto token = f.tmp.path / "short.token";
+  std::ofstream(token) << "secret\n";
+  const auto t = run_command(f.cli("serve " + shell_quote(f.map.string()) + " --port 0 --token " + shell_quote(token.string())));
+  EXPECT_EQ(t.exit_code, 1) << t.output;
+  EXPECT_NE(t.output.find("use at least 16"), std::string::npos) << t.output;
+}
+
+TEST(ServeCommand, TokenGuardsEveryRouteButHealthz) {
+  testing::TwoClassMap f;
+  const auto token_file = f.tmp.path / "serve.token";
+  const std::string token = "0123456789abcdef-token";
+  std::ofstream(token_file) << "  " << token << "  \nsecond line ignored\n";
+  testing::ServerProcess server(SLAMVDB_CLI_PATH,
+                                {"serve", f.map.string(), "--port", "0", "--ignore-model-id", "--token", token_file.string()},
+                                (f.tmp.path / "serve.log").string());
+  ASSERT_GT(server.port(), 0) << server.output();
+  httplib::Client client("127.0.0.1", server.port());
+  const auto health = client.Get("/healthz");
+  ASSERT_TRUE(health);
+  EXPECT_EQ(health->status, 200);
+  for (const std::string& bad :
+       std::vector<std::string>{"", "Bearer wrong", "Bearer " + token + "x", "Basic " + token, token}) {
+    httplib::Headers headers;
+    if (!bad.empty()) headers.emplace("Authorization", bad);
+    const auto res = client.Get("/api/info", headers);
+    ASSERT_TRUE(res);
+    EXPECT_EQ(res->status, 401) << bad;
+    EXPECT_EQ(res->get_header_value("WWW-Authenticate"), "Bearer");
+    EXPECT_TRUE(nlohmann::json::parse(res->body).at("error").contains("message"));
+    const auto query = client.Post("/api/query", headers, R"({"text": "grass"})", "application/json");
+    ASSERT_TRUE(query);
+    EXPECT_EQ(query->status, 401) << bad;
+  }
+  const httplib::Headers good = {{"Authorization", "Bearer " + token}};
+  const auto info = client.Get("/api/info", good);
+  ASSERT_TRUE(info);
+  EXPECT_EQ(info->status, 200);
+  const auto query = client.Post("/api/query", good, R"({"text": "grass", "top_k": 3})", "application/json");
+  ASSERT_TRUE(query);
+  EXPECT_EQ(query->status, 200) << query->body;
+  EXPECT_EQ(server.stop(SIGTERM), 0);
+}
+
+TEST(ServeCommand, ServesHttpsWithACertificateAndItsKey) {
+  testing::TwoClassMap f;
+  const auto cert = f.tmp.path / "cert.pem", key = f.tmp.path / "key.pem", other_key = f.tmp.path / "other.pem";
+  // A self-signed pair made by the openssl command (Debian's openssl package).
+  const auto made = run_command("openssl req -x509 -newkey ec -pkeyopt ec_paramgen_curve:prime256v1 -nodes -days 1 "
+                                "-subj /CN=127.0.0.1 -keyout " + shell_quote(key.string()) + " -out " +
+                                shell_quote(cert.string()) + " 2>&1 && openssl genpkey -algorithm EC -pkeyopt "
+                                "ec_paramgen_curve:prime256v1 -out " + shell_quote(other_key.string()) + " 2>&1");
+  ASSERT_EQ(made.exit_code, 0) << made.output;
+  {
+    testing::ServerProcess server(SLAMVDB_CLI_PATH,
+                                  {"serve", f.map.string(), "--port", "0", "--ignore-model-id", "--tls-cert",
+                                   cert.string(), "--tls-key", key.string()},
+                                  (f.tmp.path / "serve.log").string());
+    ASSERT_GT(server.port(), 0) << server.output();
+    EXPECT_NE(server.output().find("https://127.0.0.1:"), std::string::npos) << server.output();
+    httplib::SSLClient client("127.0.0.1", server.port());
+    client.enable_server_certificate_verification(false);  // self-signed: TLS is what is tested, not a CA
+    const auto res = client.Post("/api/query", R"({"text": "grass", "top_k": 2})", "application/json");
+    ASSERT_TRUE(res) << httplib::to_string(res.error());
+    EXPECT_EQ(res->status, 200) << res->body;
+    EXPECT_EQ(nlohmann::json::parse(res->body).at("count").get<int>(), 2);
+    // Plain HTTP to the TLS port gets no answer.
+    httplib::Client plain("127.0.0.1", server.port());
+    plain.set_read_timeout(2, 0);
+    const auto p = plain.Get("/healthz");
+    EXPECT_FALSE(p && p->status == 200);
+    EXPECT_EQ(server.stop(SIGTERM), 0);
+  }
+  // A key that is not the certificate's: an error naming both files, before serving.
+  const auto r = run_command(f.cli("serve " + shell_quote(f.map.string()) + " --port 0 --ignore-model-id --tls-cert " +
+                                   shell_quote(cert.string()) + " --tls-key " + shell_quote(other_key.string())));
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_NE(r.output.find("cannot use the TLS certificate"), std::string::npos) << r.output;
+  // One without the other: a usage error.
+  const auto half = run_command(f.cli("serve " + shell_quote(f.map.string()) + " --tls-cert " + shell_quote(cert.string())));
+  EXPECT_EQ(half.exit_code, 2) << half.output;
+}
+
+// The Prometheus counter of `route` and `status` in `text`, -1 when absent.
+long counter(const std::string& text, const std::string& route, int status) {
+  const std::string key = fmt::format("slamvdb_http_requests_total{{route=\"{}\",status=\"{}\"}} ", route, status);
+  const auto at = text.find(key);
+  return at == std::string::npos ? -1 : std::atol(text.c_str() + at + key.size());
+}
+
+TEST(ServeCommand, MetricsCountRequestsByRouteAndStatus) {
+  ServedMap s;
+  ASSERT_GT(s.server.port(), 0) << s.server.output() << "\n" << s.log();
+  for (int i = 0; i < 3; ++i) s.post_query({{"text", "grass"}, {"top_k", 2}});
+  s.post_query({{"text", "grass"}, {"top_k", -2}}, 400);
+  ASSERT_TRUE(s.client.Get("/api/nothing/at/all"));
+  ASSERT_TRUE(s.client.Get("/api/query"));
+  const auto res = s.client.Get("/metrics");
+  ASSERT_TRUE(res);
+  ASSERT_EQ(res->status, 200);
+  EXPECT_EQ(res->get_header_value("Content-Type").rfind("text/plain; version=0.0.4", 0), 0u);
+  const std::string& m = res->body;
+  EXPECT_EQ(counter(m, "/api/query", 200), 3) << m;
+  EXPECT_EQ(counter(m, "/api/query", 400), 1) << m;
+  EXPECT_EQ(counter(m, "/api/query", 405), 1) << m;
+  EXPECT_EQ(counter(m, "unmatched", 404), 1) << m;  // by pattern, never the raw path
+  EXPECT_EQ(m.find("/api/nothing"), std::string::npos);
+  EXPECT_NE(m.find("slamvdb_http_request_seconds_bucket{route=\"/api/query\",le=\"+Inf\"} 5"), std::string::npos) << m;
+  EXPECT_NE(m.find(fmt::format("slamvdb_map_semantic_cells {}", s.f.semantic_cells)), std::string::npos) << m;
+  EXPECT_NE(m.find("slamvdb_map_submaps 1"), std::string::npos) << m;
+  // Three queries of one text: one encode, two cache hits.
+  EXPECT_NE(m.find("slamvdb_text_cache_misses 1\n"), std::string::npos) << m;
+  EXPECT_NE(m.find("slamvdb_text_cache_hits 2\n"), std::string::npos) << m;  // the 400 one is refused before
+  EXPECT_EQ(s.server.stop(SIGTERM), 0) << s.log();
 }
 
 }  // namespace

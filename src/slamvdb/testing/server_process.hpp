@@ -1,6 +1,6 @@
 #pragma once
 // For tests only: `slamvdb serve ... --port 0` as a child process, its chosen port read from the
-// line it prints "serving MAP on http://HOST:PORT/ ...", stopped by a signal at the end.
+// line it prints "serving MAP on http[s]://HOST:PORT/ ...", stopped by a signal at the end.
 #include <fcntl.h>
 #include <poll.h>
 #include <signal.h>
@@ -41,7 +41,7 @@ class ServerProcess {
     const auto deadline = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_seconds);
     // Log lines may come first (spdlog writes to stdout): read until the address line is complete.
     const auto address_line_read = [&] {
-      const auto at = output_.find("http://");
+      const auto at = output_.find("://");
       return at != std::string::npos && output_.find('\n', at) != std::string::npos;
     };
     while (!address_line_read() && std::chrono::steady_clock::now() < deadline) {
@@ -52,11 +52,11 @@ class ServerProcess {
       if (n <= 0) break;
       output_.append(c, static_cast<std::size_t>(n));
     }
-    // http://HOST:PORT/ (HOST may be [v6]): the port follows the authority's last ':'.
-    const auto at = output_.find("http://");
-    const auto slash = at == std::string::npos ? at : output_.find('/', at + 7);
+    // http[s]://HOST:PORT/ (HOST may be [v6]): the port follows the authority's last ':'.
+    const auto at = output_.find("://");
+    const auto slash = at == std::string::npos ? at : output_.find('/', at + 3);
     const auto colon = slash == std::string::npos ? slash : output_.rfind(':', slash);
-    if (colon != std::string::npos && colon > at + 7) port_ = std::atoi(output_.c_str() + colon + 1);
+    if (colon != std::string::npos && colon > at + 3) port_ = std::atoi(output_.c_str() + colon + 1);
   }
   ~ServerProcess() {
     if (pid_ > 0) stop(SIGKILL);
