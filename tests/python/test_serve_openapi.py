@@ -35,6 +35,8 @@ def validate(value, schema, where="$"):
     if value is None:
         assert schema.get("nullable", False), f"{where}: null where {schema} is not nullable"
         return
+    for part in schema.get("allOf", []):
+        validate(value, part, where)
     if "oneOf" in schema:
         passed = 0
         for option in schema["oneOf"]:
@@ -142,6 +144,9 @@ def call(base, method, path, body=None):
     ("POST", "/api/query", {"text": "grass", "top_k": 5}, 200),
     ("POST", "/api/query", {"text": ["grass", "dirt"], "not": "tree", "top_k": 0, "threshold": -1, "exact": True}, 200),
     ("POST", "/api/query", {"vector": [[0.0] * 3 + [1.0] + [0.0] * 12], "top_k": 3}, 200),
+    ("POST", "/api/query", {"text": "grass", "top_k": 5, "region": {"bbox": [-1, -1, -1, 1, 1, 1]}}, 200),
+    ("POST", "/api/query", {"text": "grass", "region": {"near": [0.5, 0.5], "radius": 1.5}}, 200),
+    ("POST", "/api/query", {"text": "grass", "region": {"near": [0.5, 0.5]}}, 400),
     ("POST", "/api/query", {"text": "grass", "top_k": "five"}, 400),
     ("POST", "/api/query", "not json", 400),
     ("POST", "/api/query", {"text": "x" * 5000}, 413),

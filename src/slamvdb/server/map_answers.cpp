@@ -27,6 +27,23 @@ std::string field_of_terms(const QueryTerms& terms) {
   return "vector";
 }
 
+// The region an answer was limited to, as the request gives it (null: the whole map).
+nlohmann::json region_json(const std::optional<QueryRegion>& region) {
+  if (!region) return nullptr;
+  nlohmann::json j = nlohmann::json::object();
+  if (region->box) {
+    const Vec3d& lo = region->box->min();
+    const Vec3d& hi = region->box->max();
+    j["bbox"] = {lo.x(), lo.y(), lo.z(), hi.x(), hi.y(), hi.z()};
+  }
+  if (region->near) {
+    const Vec3d& c = region->near->centre;
+    j["near"] = region->near->horizontal ? nlohmann::json({c.x(), c.y()}) : nlohmann::json({c.x(), c.y(), c.z()});
+    j["radius"] = region->near->radius;
+  }
+  return j;
+}
+
 }  // namespace map_answers_detail
 
 nlohmann::json answer_query(const AnswerContext& context, const QueryRequest& request) {
@@ -83,6 +100,7 @@ nlohmann::json answer_query(const AnswerContext& context, const QueryRequest& re
           {"threshold", std::isfinite(request.search.threshold) ? nlohmann::json(request.search.threshold) : nlohmann::json()},
           {"exact", true},  // every answer is scored exactly today (an ANN index comes with issue 21's speed part)
           {"truncated", request.top_k_capped && results.size() >= request.search.top_k},
+          {"region", map_answers_detail::region_json(request.search.region)},
           {"count", results.size()},
           {"results", std::move(rows)}};
 }

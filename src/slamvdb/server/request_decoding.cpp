@@ -49,6 +49,42 @@ std::vector<Eigen::VectorXf> vector_list(const nlohmann::json& v, const std::str
   return {one_vector(v, field, dim)};
 }
 
+// A JSON array of finite numbers (any count: make_region checks the count), else a RequestError.
+std::vector<double> number_list(const nlohmann::json& v, const std::string& field) {
+  if (!v.is_array() || v.size() > 6)
+    throw RequestError(400, field, fmt::format("'{}' is an array of at most 6 numbers", field));
+  std::vector<double> out;
+  for (const auto& x : v) {
+    if (!x.is_number()) throw RequestError(400, field, fmt::format("'{}' holds a {}, not a number", field, x.type_name()));
+    out.push_back(x.get<double>());
+  }
+  return out;
+}
+
+QueryRegion region_of(const nlohmann::json& v) {
+  if (!v.is_object())
+    throw RequestError(400, "region", "'region' is an object: {\"bbox\": [xmin, ymin, zmin, xmax, ymax, zmax]} and/or "
+                                      "{\"near\": [x, y] or [x, y, z], \"radius\": r}");
+  for (const auto& [key, value] : v.items())
+    if (key != "bbox" && key != "near" && key != "radius")
+      throw RequestError(400, "region." + key, fmt::format("unknown field 'region.{}'", key));
+  std::optional<std::vector<double>> bbox, near;
+  std::optional<double> radius;
+  if (v.contains("bbox")) bbox = number_list(v["bbox"], "region.bbox");
+  if (v.contains("near")) near = number_list(v["near"], "region.near");
+  if (v.contains("radius")) {
+    if (!v["radius"].is_number()) throw RequestError(400, "region.radius", "'region.radius' is a number of metres > 0");
+    radius = v["radius"].get<double>();
+  }
+  try {
+    return make_region(bbox ? std::optional<std::span<const double>>(*bbox) : std::nullopt,
+                       near ? std::optional<std::span<const double>>(*near) : std::nullopt, radius,
+                       {"region.bbox", "region.near", "region.radius"});
+  } catch (const RegionError& e) {
+    throw RequestError(400, e.field(), e.what());
+  }
+}
+
 }  // namespace request_decoding_detail
 
 nlohmann::json error_json(const std::string& message, const std::string& field) {
@@ -74,7 +110,7 @@ QueryRequest decode_query_request(std::string_view body, int dim, const ServerLi
   using namespace request_decoding_detail;
   const nlohmann::json j = parse_json_object(body);
   static const std::set<std::string> known = {"text",       "not",   "class",     "not_class", "vector",
-                                              "not_vector", "top_k", "threshold", "exact"};
+                                              "not_vector", "top_k", "threshold", "exact", "region"};
   for (const auto& [key, value] : j.items())
     if (!known.count(key)) throw RequestError(400, key, fmt::format("unknown field '{}'", key));
   QueryRequest r;
@@ -111,6 +147,7 @@ QueryRequest decode_query_request(std::string_view body, int dim, const ServerLi
     if (!j["exact"].is_boolean()) throw RequestError(400, "exact", "'exact' is true or false");
     r.exact = j["exact"].get<bool>();
   }
+  if (j.contains("region")) r.search.region = region_of(j["region"]);
   return r;
 }
 

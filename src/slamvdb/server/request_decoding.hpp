@@ -47,10 +47,16 @@ nlohmann::json error_json(const std::string& message, const std::string& field);
 // POST /api/query. Fields (docs/openapi.yaml): text, not, class, not_class (a string or an array of
 // strings), vector, not_vector (an array of `dim` numbers or an array of such arrays), top_k
 // (1..max_top_k, or 0 with a threshold: every cell at or above it, at most max_top_k), threshold
-// (-1..1), exact (boolean). Unknown fields are refused (a typo must not pass as a default).
+// (-1..1), exact (boolean), region ({"bbox": [xmin, ymin, zmin, xmax, ymax, zmax]} and/or
+// {"near": [x, y] or [x, y, z], "radius": r}: query/query_region.hpp; errors name region.bbox,
+// region.near or region.radius). Unknown fields are refused (a typo must not pass as a default).
 struct QueryRequest {
   QueryTerms terms;
-  SearchOptions search{.top_k = 100};
+  SearchOptions search = [] {  // the CLI's default: the top 100
+    SearchOptions s;
+    s.top_k = 100;
+    return s;
+  }();
   bool exact = false;       // exact scoring asked for (today every answer is exact)
   bool top_k_capped = false;  // top_k 0 + threshold: the answer holds at most max_top_k cells
 };

@@ -52,6 +52,32 @@ TEST(RequestDecoding, QueryFieldsAsDocumented) {
   EXPECT_TRUE(all.top_k_capped);
 }
 
+TEST(RequestDecoding, RegionsAsDocumentedAndRefusalsNamingTheirPart) {
+  const QueryRequest box = decode_query_request(R"({"text": "grass", "region": {"bbox": [0, -1, -2, 3, 4, 5]}})", 3, {});
+  ASSERT_TRUE(box.search.region && box.search.region->box);
+  EXPECT_EQ(box.search.region->box->min(), Vec3d(0, -1, -2));
+  EXPECT_EQ(box.search.region->box->max(), Vec3d(3, 4, 5));
+  EXPECT_FALSE(box.search.region->near);
+  const QueryRequest near = decode_query_request(R"({"text": "grass", "region": {"near": [1, 2], "radius": 3.5}})", 3, {});
+  ASSERT_TRUE(near.search.region && near.search.region->near);
+  EXPECT_TRUE(near.search.region->near->horizontal);
+  EXPECT_EQ(near.search.region->near->radius, 3.5);
+  EXPECT_FALSE(decode_query_request(R"({"text": "grass"})", 3, {}).search.region);
+  EXPECT_EQ(refused_field(R"({"text": "g", "region": [0, 0, 0, 1, 1, 1]})"), "region");
+  EXPECT_EQ(refused_field(R"({"text": "g", "region": {}})"), "region.bbox");
+  EXPECT_EQ(refused_field(R"({"text": "g", "region": {"box": [0, 0, 0, 1, 1, 1]}})"), "region.box");
+  EXPECT_EQ(refused_field(R"({"text": "g", "region": {"bbox": [0, 0, 0, 1, 1]}})"), "region.bbox");
+  EXPECT_EQ(refused_field(R"({"text": "g", "region": {"bbox": [0, 0, 0, 1, 1, "1"]}})"), "region.bbox");
+  EXPECT_EQ(refused_field(R"({"text": "g", "region": {"bbox": [0, 0, 2, 1, 1, 1]}})"), "region.bbox");
+  EXPECT_EQ(refused_field(R"({"text": "g", "region": {"bbox": [0, 0, 0, 1, 1, 1e999]}})"), "");  // not JSON's numbers
+  EXPECT_EQ(refused_field(R"({"text": "g", "region": {"near": [1, 2, 3, 4], "radius": 1}})"), "region.near");
+  EXPECT_EQ(refused_field(R"({"text": "g", "region": {"near": [1, 2]}})"), "region.radius");
+  EXPECT_EQ(refused_field(R"({"text": "g", "region": {"near": [1, 2], "radius": 0}})"), "region.radius");
+  EXPECT_EQ(refused_field(R"({"text": "g", "region": {"near": [1, 2], "radius": "5"}})"), "region.radius");
+  EXPECT_EQ(refused_field(R"({"text": "g", "region": {"radius": 5}})"), "region.near");
+  EXPECT_EQ(refused_field(R"({"text": "g", "region": {"near": 5, "radius": 5}})"), "region.near");
+}
+
 TEST(RequestDecoding, RefusalsNameTheField) {
   EXPECT_EQ(refused_field(""), "");
   EXPECT_EQ(refused_field("{"), "");

@@ -11,9 +11,8 @@
 
 #include "slamvdb/io/npy.hpp"
 #include "slamvdb/testing/csv_reader.hpp"
-#include "slamvdb/testing/server_process.hpp"
+#include "slamvdb/testing/served_map.hpp"
 #include "slamvdb/testing/text_file.hpp"
-#include "slamvdb/testing/two_class_map.hpp"
 #include "slamvdb/server/httplib_include.hpp"
 
 namespace slamvdb {
@@ -22,52 +21,8 @@ namespace {
 using testing::run_command;
 using testing::shell_quote;
 
-// An answer's results as the CLI's CSV writes them (query -o X.csv with --queries).
-std::vector<std::vector<std::string>> rows_of_answer(const nlohmann::json& answer) {
-  std::vector<std::vector<std::string>> rows;
-  for (const auto& r : answer.at("results")) {
-    const auto& p = r.at("position");
-    rows.push_back({fmt::format("{}", r.at("rank").get<int>()), fmt::format("{:.3f}", p[0].get<double>()),
-                    fmt::format("{:.3f}", p[1].get<double>()), fmt::format("{:.3f}", p[2].get<double>()),
-                    fmt::format("{:.6f}", r.at("score").get<float>()), fmt::format("{}", r.at("count").get<uint32_t>()),
-                    fmt::format("{:.3f}", r.at("weight").get<float>()),
-                    r.at("spread").is_null() ? "" : fmt::format("{:.6f}", r.at("spread").get<float>()),
-                    r.at("class").is_null() ? "" : r.at("class").get<std::string>(),
-                    fmt::format("{:.4f}", r.at("confidence").get<float>())});
-  }
-  return rows;
-}
-
-struct ServedMap {
-  testing::TwoClassMap f;
-  testing::ServerProcess server{SLAMVDB_CLI_PATH,
-                                {"serve", f.map.string(), "--port", "0", "--queries", f.queries.string(),
-                                 "--ignore-model-id", "--max-body", "4096"},
-                                (f.tmp.path / "serve.log").string()};
-  httplib::Client client{"127.0.0.1", server.port()};
-
-  std::string log() const { return testing::read_text_file(f.tmp.path / "serve.log"); }
-  // `slamvdb query MAP ARGS --queries Q --ignore-model-id -o out.csv`: its CSV rows without the header.
-  std::vector<std::vector<std::string>> cli_rows(const std::string& args) const {
-    const auto out = f.tmp.path / "cli.csv";
-    const auto r = run_command(f.cli("query " + shell_quote(f.map.string()) + " " + args + " --queries " +
-                                     shell_quote(f.queries.string()) + " --ignore-model-id -o " + shell_quote(out.string())));
-    EXPECT_EQ(r.exit_code, 0) << args << "\n" << r.output;
-    std::string error;
-    auto records = testing::read_csv_strict(testing::read_text_file(out), &error);
-    EXPECT_TRUE(records) << error;
-    if (!records || records->empty()) return {};
-    return {records->begin() + 1, records->end()};
-  }
-  nlohmann::json post_query(const nlohmann::json& body, int expected_status = 200) {
-    const auto res = client.Post("/api/query", body.dump(), "application/json");
-    EXPECT_TRUE(res) << "no answer; server log:\n" << log();
-    if (!res) return {};
-    EXPECT_EQ(res->status, expected_status) << body.dump() << "\n" << res->body;
-    EXPECT_EQ(res->get_header_value("Content-Type"), "application/json");
-    return nlohmann::json::parse(res->body);
-  }
-};
+using testing::query_answer_rows;
+using testing::ServedMap;
 
 TEST(ServeCommand, AnswersEqualTheCli) {
   ServedMap s;
@@ -110,7 +65,7 @@ TEST(ServeCommand, AnswersEqualTheCli) {
     EXPECT_TRUE(answer.at("encoder").at("simulated").get<bool>());
     const auto expected = s.cli_rows(args);
     ASSERT_FALSE(expected.empty()) << args;
-    EXPECT_EQ(rows_of_answer(answer), expected) << body.dump() << " vs " << args;
+    EXPECT_EQ(query_answer_rows(answer), expected) << body.dump() << " vs " << args;
     EXPECT_EQ(answer.at("count").get<std::size_t>(), expected.size());
   }
   EXPECT_EQ(s.server.stop(SIGTERM), 0) << s.log();
