@@ -36,6 +36,7 @@ PACKAGES=(
   pybind11-dev python3-dev python3-pytest  # the Python module and its tests
   python3-mypy                       # its type stubs checked against it (stubtest)
   libceres-dev libnanoflann-dev liblzf-dev  # localization: pose graph, ScanContext k-d tree, PCD binary_compressed
+  libpqxx-dev libpq-dev postgresql-15 postgresql-15-postgis-3  # the fleet map (PostgreSQL + PostGIS); tests start their own servers
   clang libclang-rt-14-dev           # sanitizer build (ASan + UBSan) and libFuzzer harnesses (scripts/fuzz.sh)
   chromium                           # the HTML viewer's test (headless, driven by playwright-core)
   liblz4-dev libzstd-dev libbz2-dev  # recordings: lz4, zstd and bz2 compressed chunks (MCAP, ROS 1 bags, rosbag2)

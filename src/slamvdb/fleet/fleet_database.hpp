@@ -1,0 +1,48 @@
+#pragma once
+// A connection to a fleet map: a PostgreSQL database with PostGIS that holds many sessions'
+// submaps (docs/fleet-design.md). Connection strings are libpq's (URLs or key=value, with
+// PGPASSFILE, PGHOST, ... from the environment), so credentials never need a command line.
+#include <memory>
+#include <string>
+#include <string_view>
+
+namespace slamvdb::fleet {
+
+// The schema version this build writes and reads. Older databases are migrated step by step;
+// a newer one is refused (an older slamvdb must not write rows it does not understand).
+inline constexpr int kFleetSchemaVersion = 1;
+
+struct SchemaCheck {
+  int found_version = 0;  // 0: the database had no fleet schema
+  int version = 0;        // after the check: always kFleetSchemaVersion
+  bool created() const { return found_version == 0; }
+  bool migrated() const { return found_version != 0 && found_version != version; }
+};
+
+// A connection string with any password removed, for messages and logs.
+std::string redact_connection_url(std::string_view url);
+
+class FleetDatabase {
+ public:
+  // Connects; throws Error naming the (redacted) connection string and the server's reason.
+  explicit FleetDatabase(const std::string& url);
+  ~FleetDatabase();
+  FleetDatabase(FleetDatabase&&) noexcept;
+  FleetDatabase& operator=(FleetDatabase&&) noexcept;
+
+  // Creates PostGIS and the fleet schema in an empty database, migrates an older schema, leaves
+  // a current one alone; refuses a newer one and a damaged one (Error saying which and why).
+  // Safe when several robots call it at once: the work is serialised by an advisory lock.
+  SchemaCheck ensure_schema();
+  // The fleet schema version of the database, 0 when it has none (nothing is changed).
+  int schema_version();
+
+  const std::string& display_url() const { return display_url_; }
+
+ private:
+  struct Connection;
+  std::unique_ptr<Connection> connection_;
+  std::string display_url_;
+};
+
+}  // namespace slamvdb::fleet

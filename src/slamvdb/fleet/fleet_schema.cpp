@@ -1,0 +1,83 @@
+#include "slamvdb/fleet/fleet_schema.hpp"
+
+#include <array>
+
+#include "slamvdb/fleet/fleet_database.hpp"
+
+namespace slamvdb::fleet {
+namespace {
+
+// Version 1 (docs/fleet-design.md, "Schema", says why each choice):
+// - one fleet frame for every session (metres, SRID 0: a local frame, not a geographic one);
+// - poses as 16 doubles, row-major 4x4, named T_a_b as everywhere in slamvdb;
+// - a submap's footprint is its world bounds' box in the fleet frame (a polygon with a GiST
+//   index) plus its height range; corrections rewrite anchors and footprints, never payloads;
+// - the payload rows are the map file's own (store format 3): occupancy blocks (compressed by
+//   slamvdb, so STORAGE EXTERNAL: TOAST must not try to compress them again) and semantic chunks.
+constexpr const char* kVersion1 = R"sql(
+CREATE SCHEMA slamvdb;
+CREATE TABLE slamvdb.schema_info(
+  version integer NOT NULL,
+  single boolean PRIMARY KEY DEFAULT true CHECK (single));
+CREATE TABLE slamvdb.fleet(
+  single boolean PRIMARY KEY DEFAULT true CHECK (single),
+  voxel_size double precision NOT NULL CHECK (voxel_size > 0),
+  semantic_dim integer NOT NULL CHECK (semantic_dim > 0),
+  model_id text NOT NULL,
+  ontology text NOT NULL,
+  params jsonb NOT NULL);
+CREATE TABLE slamvdb.sessions(
+  id bigint GENERATED ALWAYS AS IDENTITY PRIMARY KEY,
+  name text NOT NULL UNIQUE,
+  robot text NOT NULL DEFAULT '',
+  source text NOT NULL DEFAULT '',
+  time_begin double precision,
+  time_end double precision,
+  t_fleet_session double precision[] NOT NULL CHECK (cardinality(t_fleet_session) = 16),
+  pushed_at timestamptz NOT NULL DEFAULT now());
+CREATE TABLE slamvdb.submaps(
+  session bigint NOT NULL REFERENCES slamvdb.sessions(id) ON DELETE CASCADE,
+  submap integer NOT NULL,
+  t_world_submap double precision[] NOT NULL CHECK (cardinality(t_world_submap) = 16),
+  time_begin double precision,
+  time_end double precision,
+  path_length double precision NOT NULL,
+  footprint geometry(Polygon, 0) NOT NULL,
+  z_min double precision NOT NULL,
+  z_max double precision NOT NULL,
+  blocks bigint NOT NULL,
+  known_voxels bigint NOT NULL,
+  occupied_voxels bigint NOT NULL,
+  semantic_voxels bigint NOT NULL,
+  payload_bytes bigint NOT NULL,
+  revision integer NOT NULL DEFAULT 1,
+  PRIMARY KEY (session, submap));
+CREATE INDEX submaps_footprint ON slamvdb.submaps USING gist (footprint);
+CREATE TABLE slamvdb.occupancy(
+  session bigint NOT NULL,
+  submap integer NOT NULL,
+  bx integer NOT NULL, by integer NOT NULL, bz integer NOT NULL,
+  log_odds bytea NOT NULL,
+  crc bigint NOT NULL,
+  PRIMARY KEY (session, submap, bx, by, bz),
+  FOREIGN KEY (session, submap) REFERENCES slamvdb.submaps ON DELETE CASCADE);
+ALTER TABLE slamvdb.occupancy ALTER COLUMN log_odds SET STORAGE EXTERNAL;
+CREATE TABLE slamvdb.semantics(
+  session bigint NOT NULL,
+  submap integer NOT NULL,
+  chunk integer NOT NULL,
+  keys bytea NOT NULL, counts bytea NOT NULL, embeddings bytea NOT NULL,
+  crc bigint NOT NULL,
+  stats bytea NOT NULL,
+  stats_crc bigint NOT NULL,
+  PRIMARY KEY (session, submap, chunk),
+  FOREIGN KEY (session, submap) REFERENCES slamvdb.submaps ON DELETE CASCADE);
+)sql";
+
+constexpr std::array<const char*, kFleetSchemaVersion> kMigrations{kVersion1};
+
+}  // namespace
+
+std::span<const char* const> fleet_migrations() { return kMigrations; }
+
+}  // namespace slamvdb::fleet
