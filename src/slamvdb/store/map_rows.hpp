@@ -7,6 +7,7 @@
 
 #include "slamvdb/store/map_store.hpp"
 #include "slamvdb/store/sqlite_db.hpp"
+#include "slamvdb/store/submap_payload.hpp"
 
 namespace slamvdb::store {
 
@@ -34,9 +35,6 @@ std::vector<SubmapSummary> read_submap_rows(Database& db, int format_version);
 
 // ---- voxels of one submap ----
 // Returns the bytes of the written blobs (occupancy compressed, semantics raw).
-struct PayloadBytes {
-  uint64_t occupancy = 0, semantics = 0;
-};
 PayloadBytes write_submap_voxels(Database& db, const Submap& submap, EmbeddingPrecision precision);
 // Read and validate one submap's rows (semantics in the file's storage precision). The two halves
 // are independent, so a loader may read them on two threads (each with its own connection).
