@@ -1,6 +1,6 @@
 #pragma once
 // `slamvdb --help`: the commands in the order of the work (make data, map, localize, ask, look,
-// evaluate, tools), one line each. Each command's own --help keeps its full description; the
+// share, evaluate, tools), one line each. Each command's own --help keeps its full description; the
 // lines here are the overview only. A command missing from the table is listed last under
 // "Other" (CliConventions.TopLevelHelpListsTheWorkflowOneLineEach fails on it).
 #include <CLI/CLI.hpp>
@@ -33,6 +33,7 @@ inline const std::vector<CommandOverviewLine>& command_overview() {
       {"Look", "inspect", "What a recording or dataset holds, and which topics map uses"},
       {"Look", "info", "What a map file holds and how it was made"},
       {"Look", "export", "Write a map as .ply, .pcd, .png, .csv, .npy or .html"},
+      {"Share", "push", "Push a map's submaps into a fleet map (PostgreSQL + PostGIS)"},
       {"Evaluate", "eval", "Score a map against a labelled sequence (Table 6.1)"},
       {"Evaluate", "eval-images", "Score the per-image baseline against the 2D labels"},
       {"Evaluate", "eval-trajectory", "Score a trajectory against ground truth (ATE, RPE)"},

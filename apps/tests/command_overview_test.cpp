@@ -1,5 +1,5 @@
 // `slamvdb --help` lists every command in the order of the work (make data, map, localize, ask,
-// look, evaluate, tools), one line each; each command's own --help keeps its full description.
+// look, share, evaluate, tools), one line each; each command's own --help keeps its full description.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -24,6 +24,7 @@ TEST(CliConventions, TopLevelHelpListsTheWorkflowOneLineEach) {
       "odometry",                // localize
       "query", "classify", "train-queries", "import-queries", "serve",  // ask
       "inspect", "info", "export",  // look
+      "push",                       // share
       "eval", "eval-images", "eval-trajectory",  // evaluate
       "tokenize", "embed-text", "segment"};      // tools
 #if !SLAMVDB_WITH_TRAINING  // the demo trains query vectors: builds without Torch have no demo

@@ -6,6 +6,7 @@
 #include <regex>
 
 #include "slamvdb/core/error.hpp"
+#include "slamvdb/fleet/fleet_connection.hpp"
 #include "slamvdb/fleet/fleet_schema.hpp"
 
 namespace slamvdb::fleet {
@@ -14,11 +15,6 @@ namespace {
 // Any number, the same in every slamvdb: the key of the advisory lock that serialises schema
 // creation and migration (CREATE EXTENSION and CREATE SCHEMA race when two robots start at once).
 constexpr long long kSchemaLockKey = 0x736c616d76646231;  // "slamvdb1"
-
-std::string trimmed(std::string text) {
-  while (!text.empty() && (text.back() == '\n' || text.back() == ' ')) text.pop_back();
-  return text;
-}
 
 int read_schema_version(pqxx::transaction_base& tx, const std::string& display_url) {
   if (tx.exec("SELECT to_regclass('slamvdb.schema_info') IS NULL")[0][0].as<bool>()) {
@@ -38,11 +34,6 @@ int read_schema_version(pqxx::transaction_base& tx, const std::string& display_u
 
 }  // namespace
 
-struct FleetDatabase::Connection {
-  pqxx::connection connection;
-  explicit Connection(const std::string& url) : connection(url) {}
-};
-
 std::string redact_connection_url(std::string_view url) {
   std::string out(url);
   // URL form: scheme://user:password@host -> scheme://user:***@host; parameter forms
@@ -56,7 +47,7 @@ FleetDatabase::FleetDatabase(const std::string& url) : display_url_(redact_conne
   try {
     connection_ = std::make_unique<Connection>(url);
   } catch (const std::exception& e) {
-    throw Error(fmt::format("cannot connect to the fleet database {}: {}", display_url_, trimmed(e.what())));
+    throw Error(fmt::format("cannot connect to the fleet database {}: {}", display_url_, trimmed_message(e.what())));
   }
 }
 
@@ -69,7 +60,7 @@ int FleetDatabase::schema_version() {
     pqxx::read_transaction tx(connection_->connection);
     return read_schema_version(tx, display_url_);
   } catch (const pqxx::failure& e) {
-    throw Error(fmt::format("fleet database {}: {}", display_url_, trimmed(e.what())));
+    throw Error(fmt::format("fleet database {}: {}", display_url_, trimmed_message(e.what())));
   }
 }
 
@@ -91,7 +82,7 @@ SchemaCheck FleetDatabase::ensure_schema() {
       } catch (const pqxx::sql_error& e) {
         throw Error(fmt::format("fleet database {}: cannot create the PostGIS extension ({}); the server needs "
                                 "PostGIS installed (Debian: postgresql-15-postgis-3) and a role allowed to create it",
-                                display_url_, trimmed(e.what())));
+                                display_url_, trimmed_message(e.what())));
       }
     }
     const std::span<const char* const> steps = fleet_migrations();
@@ -104,7 +95,7 @@ SchemaCheck FleetDatabase::ensure_schema() {
   } catch (const Error&) {
     throw;
   } catch (const pqxx::failure& e) {
-    throw Error(fmt::format("fleet database {}: {}", display_url_, trimmed(e.what())));
+    throw Error(fmt::format("fleet database {}: {}", display_url_, trimmed_message(e.what())));
   }
   check.version = kFleetSchemaVersion;
   return check;

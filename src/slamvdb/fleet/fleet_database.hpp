@@ -6,6 +6,12 @@
 #include <string>
 #include <string_view>
 
+#include "slamvdb/fleet/fleet_push.hpp"
+
+namespace slamvdb {
+class SemanticMap;
+}
+
 namespace slamvdb::fleet {
 
 // The schema version this build writes and reads. Older databases are migrated step by step;
@@ -36,6 +42,15 @@ class FleetDatabase {
   SchemaCheck ensure_schema();
   // The fleet schema version of the database, 0 when it has none (nothing is changed).
   int schema_version();
+
+  // Pushes every submap of `map` as the session `options.session`: the schema first if the
+  // database has none, then the session row, then one transaction per submap, so a crash or a
+  // killed server leaves whole submaps only and a repeated push completes the rest. Idempotent:
+  // a submap already there with the same payload is not written again; a new anchor (a loop
+  // correction, an alignment) rewrites its catalog row and footprint only. A map whose embedding
+  // space, voxel size, ontology or occupancy clamping differ from the fleet's is refused before
+  // anything is written (Error naming the entry and both values).
+  PushReport push_map(const SemanticMap& map, const PushOptions& options);
 
   const std::string& display_url() const { return display_url_; }
 

@@ -25,7 +25,8 @@ CREATE TABLE slamvdb.fleet(
   semantic_dim integer NOT NULL CHECK (semantic_dim > 0),
   model_id text NOT NULL,
   ontology text NOT NULL,
-  params jsonb NOT NULL);
+  params jsonb NOT NULL,  -- the map file's meta entries that every pushed map must share
+  colour_basis text);
 CREATE TABLE slamvdb.sessions(
   id bigint GENERATED ALWAYS AS IDENTITY PRIMARY KEY,
   name text NOT NULL UNIQUE,
@@ -49,6 +50,8 @@ CREATE TABLE slamvdb.submaps(
   known_voxels bigint NOT NULL,
   occupied_voxels bigint NOT NULL,
   semantic_voxels bigint NOT NULL,
+  payload_format integer NOT NULL,
+  payload_crc bigint NOT NULL,
   payload_bytes bigint NOT NULL,
   revision integer NOT NULL DEFAULT 1,
   PRIMARY KEY (session, submap));

@@ -21,32 +21,12 @@ using slamvdb::testing::PostgresServer;
 
 class FleetSchema : public ::testing::Test {
  protected:
-  static void SetUpTestSuite() {
-    dir_ = std::filesystem::temp_directory_path() / ("slamvdb-FleetSchema-" + std::to_string(::getpid()));
-    std::filesystem::remove_all(dir_);
-    std::filesystem::create_directories(dir_);
-    server_ = std::make_unique<PostgresServer>(dir_);
-  }
-  static void TearDownTestSuite() {
-    server_.reset();
-    std::filesystem::remove_all(dir_);
-  }
-  // A fresh, empty database for this test.
-  std::string fresh_database() {
-    const std::string name = "t_" + std::string(::testing::UnitTest::GetInstance()->current_test_info()->name());
-    std::string lower;
-    for (char c : name) lower += static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
-    server_->psql("CREATE DATABASE " + lower);
-    return lower;
-  }
+  static void SetUpTestSuite() { server_ = &slamvdb::testing::shared_postgres_server(); }
+  std::string fresh_database() { return slamvdb::testing::fresh_test_database(*server_); }
   static std::string sql(const std::string& query, const std::string& database) {
-    std::string out = server_->psql(query, database);
-    while (!out.empty() && out.back() == '\n') out.pop_back();
-    return out;
+    return slamvdb::testing::psql_value(*server_, query, database);
   }
-
-  static inline std::filesystem::path dir_;
-  static inline std::unique_ptr<PostgresServer> server_;
+  static inline PostgresServer* server_ = nullptr;
 };
 
 TEST_F(FleetSchema, AnEmptyDatabaseGetsPostgisAndTheSchemaOnceAndIsLeftAloneAfter) {
@@ -129,7 +109,7 @@ TEST_F(FleetSchema, ADamagedSchemaIsRefusedAndLeftUntouched) {
 }
 
 TEST_F(FleetSchema, ConnectionErrorsNameTheServerButNeverThePassword) {
-  const std::string url = "postgresql://robot:s3cret@/fleet?host=" + (dir_ / "no-server-here").string() + "&port=5432";
+  const std::string url = "postgresql://robot:s3cret@/fleet?host=" + (std::filesystem::temp_directory_path() / "no-server-here").string() + "&port=5432";
   const std::string error = slamvdb::testing::error_of([&] { FleetDatabase fleet(url); });
   EXPECT_NE(error.find("cannot connect to the fleet database postgresql://robot:***@/fleet"), std::string::npos)
       << error;

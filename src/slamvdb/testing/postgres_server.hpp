@@ -4,10 +4,17 @@
 // trust authentication for its superuser `postgres`. PostgreSQL refuses to run as root and CI runs
 // as root, so there the server runs as the unprivileged `postgres` account Debian's package
 // creates (runuser); as any other user it runs as that user.
+#include <gtest/gtest.h>
 #include <pwd.h>
+#include <signal.h>
+#include <stdlib.h>
 #include <unistd.h>
 
+#include <cctype>
 #include <filesystem>
+#include <memory>
+#include <sstream>
+#include <vector>
 #include <stdexcept>
 #include <string>
 
@@ -22,11 +29,16 @@ class PostgresServer {
   // Creates the cluster in `dir`/pg (dir must exist) and starts it.
   explicit PostgresServer(const std::filesystem::path& dir) : root_(dir / "pg") {
     std::filesystem::create_directories(root_);
+    // The socket's own short directory: a Unix socket path holds at most 107 bytes.
+    std::string socket_template = (std::filesystem::temp_directory_path() / "svdb-pg-XXXXXX").string();
+    if (!::mkdtemp(socket_template.data())) throw std::runtime_error("cannot create a socket directory");
+    socket_dir_ = socket_template;
     if (::geteuid() == 0) {
       const passwd* account = ::getpwnam("postgres");
       if (!account) throw std::runtime_error("running as root and there is no `postgres` account to run the server as");
-      if (::chown(root_.c_str(), account->pw_uid, account->pw_gid) != 0)
-        throw std::runtime_error("cannot hand " + root_.string() + " to the postgres account");
+      for (const std::filesystem::path& owned : {root_, socket_dir_})
+        if (::chown(owned.c_str(), account->pw_uid, account->pw_gid) != 0)
+          throw std::runtime_error("cannot hand " + owned.string() + " to the postgres account");
       as_user_ = "runuser -u postgres -- ";
     }
     run("initdb -D " + quote_path(data()) + " -A trust -U postgres -E UTF8 --no-sync --no-instructions", 120);
@@ -34,15 +46,25 @@ class PostgresServer {
   }
   ~PostgresServer() {
     if (running_) run_command(as_user_ + bin("pg_ctl") + " -D " + quote_path(data()) + " -m immediate -w stop", 60);
+    std::error_code ignored;
+    std::filesystem::remove_all(socket_dir_, ignored);
   }
   PostgresServer(const PostgresServer&) = delete;
   PostgresServer& operator=(const PostgresServer&) = delete;
 
   void start() {
     // fsync off: a test server's data need not survive a power cut, only a server kill.
-    run("pg_ctl -D " + quote_path(data()) + " -l " + quote_path(root_ / "server.log") + " -w -t 60 -o " +
-            shell_quote("-k " + root_.string() + " -c listen_addresses='' -p 5432 -c fsync=off -c max_connections=40") + " start",
+    const std::filesystem::path log = root_ / "server.log";
+    const CommandResult r = run_command(
+        as_user_ + bin("pg_ctl") + " -D " + quote_path(data()) + " -l " + quote_path(log) + " -w -t 60 -o " +
+            shell_quote("-k " + socket_dir_.string() + " -c listen_addresses='' -p 5432 -c fsync=off -c max_connections=40") +
+            " start",
         90);
+    if (r.exit_code != 0) {
+      std::ifstream in(log);
+      const std::string server_log((std::istreambuf_iterator<char>(in)), {});
+      throw std::runtime_error("pg_ctl start failed: " + r.output + "\nserver log:\n" + server_log);
+    }
     running_ = true;
   }
   // A fast shutdown (clients disconnected, consistent on disk).
@@ -50,17 +72,35 @@ class PostgresServer {
     run("pg_ctl -D " + quote_path(data()) + " -m fast -w stop", 60);
     running_ = false;
   }
-  // The server's processes killed without warning: what a crash or a pulled plug leaves behind.
+  // The server's processes killed without warning, as a crash or a pulled plug leaves them: the
+  // postmaster is frozen first (so it restarts no backend), its children killed, then itself.
   void kill_hard() {
-    run_command(as_user_ + "/bin/sh -c " + shell_quote("kill -9 $(head -1 " + (data() / "postmaster.pid").string() + ")"));
-    for (int i = 0; i < 200 && run_command("pgrep -f " + shell_quote("postgres -D " + data().string())).exit_code == 0; ++i)
-      std::this_thread::sleep_for(std::chrono::milliseconds(25));
+    std::ifstream pid_file(data() / "postmaster.pid");
+    long pid = 0;
+    if (!(pid_file >> pid) || pid <= 0) throw std::runtime_error("no postmaster.pid in " + data().string());
+    ::kill(static_cast<pid_t>(pid), SIGSTOP);
+    std::vector<long> doomed{pid};
+    std::istringstream children(run_command("pgrep -P " + std::to_string(pid)).output);
+    for (long child = 0; children >> child;) doomed.push_back(child);
+    for (const long p : doomed) ::kill(static_cast<pid_t>(p), SIGKILL);
+    const auto alive = [](long p) {  // a zombie (nobody reaps a daemon here) counts as gone
+      std::ifstream stat("/proc/" + std::to_string(p) + "/stat");
+      std::string pid_text, name, state;
+      return stat >> pid_text >> name >> state && state != "Z";
+    };
+    for (const long p : doomed)
+      for (int i = 0; i < 400 && alive(p); ++i) std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    // Where nobody reaps daemons (a container whose PID 1 does not), the dead postmaster stays a
+    // zombie, which PostgreSQL's lock-file checks take for a running server: its lock files go,
+    // as an administrator would remove them after making sure the process is dead.
+    std::filesystem::remove(data() / "postmaster.pid");
+    std::filesystem::remove(socket_dir_ / ".s.PGSQL.5432.lock");
     running_ = false;
   }
 
   // A libpq connection URL for `database` on this server.
   std::string url(const std::string& database = "postgres") const {
-    return "postgresql:///" + database + "?host=" + root_.string() + "&port=5432&user=postgres";
+    return "postgresql:///" + database + "?host=" + socket_dir_.string() + "&port=5432&user=postgres";
   }
   // Runs `sql` through psql (an independent client, not ours) as the superuser; throws on failure.
   std::string psql(const std::string& sql, const std::string& database = "postgres") const {
@@ -78,9 +118,49 @@ class PostgresServer {
     if (r.exit_code != 0) throw std::runtime_error(command + " failed: " + r.output);
   }
 
-  std::filesystem::path root_;
+  std::filesystem::path root_, socket_dir_;
   std::string as_user_;
   bool running_ = false;
 };
+
+// One server for the whole test process: started on first use (about 1 s), stopped and removed
+// at exit. Tests keep apart by each using its own database (fresh_test_database).
+inline PostgresServer& shared_postgres_server() {
+  struct Owner {
+    std::filesystem::path dir = std::filesystem::temp_directory_path() / ("slamvdb-postgres-" + std::to_string(::getpid()));
+    std::unique_ptr<PostgresServer> server;
+    Owner() {
+      std::filesystem::remove_all(dir);
+      std::filesystem::create_directories(dir);
+      server = std::make_unique<PostgresServer>(dir);
+    }
+    ~Owner() {
+      server.reset();
+      std::error_code ignored;
+      std::filesystem::remove_all(dir, ignored);
+    }
+  };
+  static Owner owner;
+  return *owner.server;
+}
+
+// A new, empty database named after the running test (and `suffix`); returns its name.
+inline std::string fresh_test_database(PostgresServer& server, const std::string& suffix = "") {
+  const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
+  std::string name = "t";
+  for (const char c : std::string(info->test_suite_name()) + "_" + info->name() + suffix)
+    name += std::isalnum(static_cast<unsigned char>(c)) ? static_cast<char>(std::tolower(static_cast<unsigned char>(c))) : '_';
+  if (name.size() > 60) name = name.substr(0, 44) + "_" + std::to_string(std::hash<std::string>{}(name) % 1000000007);
+  server.psql("DROP DATABASE IF EXISTS " + name);
+  server.psql("CREATE DATABASE " + name);
+  return name;
+}
+
+// psql's answer without its final newline.
+inline std::string psql_value(PostgresServer& server, const std::string& sql, const std::string& database) {
+  std::string out = server.psql(sql, database);
+  while (!out.empty() && out.back() == '\n') out.pop_back();
+  return out;
+}
 
 }  // namespace slamvdb::testing

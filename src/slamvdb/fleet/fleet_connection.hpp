@@ -1,0 +1,33 @@
+#pragma once
+// Internal to the fleet part: the libpq connection behind a FleetDatabase, and the helpers its
+// statements share (libpqxx stays out of every public header).
+#include <fmt/format.h>
+
+#include <pqxx/pqxx>
+#include <string>
+
+#include "slamvdb/core/types.hpp"
+#include "slamvdb/fleet/fleet_database.hpp"
+
+namespace slamvdb::fleet {
+
+struct FleetDatabase::Connection {
+  pqxx::connection connection;
+  bool statements_prepared = false;  // push's prepared statements (once per connection)
+  explicit Connection(const std::string& url) : connection(url) {}
+};
+
+// A pose as a PostgreSQL float8[] literal of its 16 entries, row-major (exact: 17 digits).
+inline std::string pose_array(const Pose& T) {
+  std::string out = "{";
+  for (int r = 0; r < 4; ++r)
+    for (int c = 0; c < 4; ++c) out += fmt::format("{}{:.17g}", r + c == 0 ? "" : ",", T.matrix()(r, c));
+  return out + "}";
+}
+
+inline std::string trimmed_message(std::string text) {
+  while (!text.empty() && (text.back() == '\n' || text.back() == ' ')) text.pop_back();
+  return text;
+}
+
+}  // namespace slamvdb::fleet

@@ -1,0 +1,233 @@
+// Pushing a map's submaps into the fleet: the fleet's shared parameters checked first, the session
+// row, then one transaction per submap (catalog row + payload rows, or the catalog row alone when
+// only the anchor moved).
+#include <fmt/format.h>
+
+#include <array>
+#include <chrono>
+#include <nlohmann/json.hpp>
+
+#include "slamvdb/core/error.hpp"
+#include "slamvdb/fleet/fleet_connection.hpp"
+#include "slamvdb/map/semantic_map.hpp"
+#include "slamvdb/store/map_rows.hpp"
+#include "slamvdb/store/submap_payload.hpp"
+
+namespace slamvdb::fleet {
+namespace {
+
+// The map file meta entries every map of one fleet shares: how payload rows are read (voxel size,
+// embedding dimension and precision, clamping) and what they mean (embedding space, ontology).
+// Sensor settings (hit/miss log-odds, ranges) may differ between robots.
+constexpr std::array<const char*, 9> kSharedEntries{"voxel_size",  "semantic_dim",       "semantic_precision",
+                                                    "model_id",    "ontology",           "clamp_min",
+                                                    "clamp_max",   "occupied_threshold", "semantic_single_view"};
+
+std::string entry_or_absent(const store::Meta& meta, const char* key) {
+  const auto it = meta.find(key);
+  return it == meta.end() ? std::string("(absent)") : it->second;
+}
+
+// Creates the fleet row from the first map pushed, or checks the map against it.
+void check_or_define_fleet(pqxx::work& tx, const SemanticMap& map, const std::string& display_url) {
+  const store::Meta meta = store::map_meta(map.params(), map.info());
+  nlohmann::json shared = nlohmann::json::object();
+  for (const char* key : kSharedEntries)
+    if (meta.contains(key)) shared[key] = meta.at(key);
+  tx.exec_params(
+      "INSERT INTO slamvdb.fleet(voxel_size, semantic_dim, model_id, ontology, params) "
+      "VALUES ($1, $2, $3, $4, $5::jsonb) ON CONFLICT (single) DO NOTHING",
+      map.params().occupancy.voxel_size, map.params().semantic.dim, map.info().model_id, map.info().ontology,
+      shared.dump());
+  const pqxx::result fleet = tx.exec("SELECT params::text FROM slamvdb.fleet");
+  const nlohmann::json fleet_params = nlohmann::json::parse(fleet[0][0].c_str());
+  for (const char* key : kSharedEntries) {
+    const std::string theirs = fleet_params.contains(key) ? fleet_params[key].get<std::string>() : "(absent)";
+    const std::string ours = entry_or_absent(meta, key);
+    if (theirs != ours)
+      throw Error(fmt::format("the map differs from the fleet at {} in '{}': the fleet has {}, the map {}; "
+                              "nothing was pushed (one fleet holds one embedding space, voxel size and ontology)",
+                              display_url, key, theirs, ours));
+  }
+}
+
+struct OwnedOccupancyRow {
+  BlockKey key;
+  std::vector<std::byte> log_odds;
+  int64_t crc;
+};
+struct OwnedSemanticRow {
+  int64_t chunk;
+  std::vector<std::byte> keys, counts, embeddings, stats;
+  int64_t crc, stats_crc;
+};
+std::vector<std::byte> owned(std::span<const std::byte> bytes) { return {bytes.begin(), bytes.end()}; }
+pqxx::binarystring bytea(const std::vector<std::byte>& bytes) { return {bytes.data(), bytes.size()}; }
+
+// One submap's rows, encoded once, and what identifies its payload.
+struct EncodedSubmap {
+  std::vector<OwnedOccupancyRow> occupancy;
+  std::vector<OwnedSemanticRow> semantics;
+  store::PayloadBytes bytes;
+  int64_t payload_crc = 0;  // over the rows' CRCs and the submap's own values
+  Eigen::AlignedBox3d bounds_fleet;
+};
+
+EncodedSubmap encode(const Submap& submap, const MapParams& params, const Pose& T_fleet_session) {
+  EncodedSubmap out;
+  store::Crc crc;
+  const SubmapInfo& info = submap.info();
+  crc.add(int64_t{info.id}).add_real(info.path_length);
+  if (!info.time_range.empty()) crc.add_real(info.time_range.begin).add_real(info.time_range.end);
+  out.bytes = store::encode_submap_payload(
+      submap, params.semantic.precision,
+      [&](const store::OccupancyRow& r) {
+        out.occupancy.push_back({r.key, owned(r.log_odds), r.crc});
+        crc.add(r.crc);
+      },
+      [&](const store::SemanticChunkRow& r) {
+        out.semantics.push_back({r.chunk, owned(r.keys), owned(r.counts), owned(r.embeddings), owned(r.stats), r.crc,
+                                 r.stats_crc});
+        crc.add(r.crc).add(r.stats_crc);
+      });
+  out.payload_crc = crc.value();
+  // The footprint: the box of every block's corners in the fleet frame (a rotated box is held by
+  // the box of its corners; blocks, not voxels, bound it: cheaper and still a superset).
+  const double block = kBlockSide * params.occupancy.voxel_size;
+  Eigen::AlignedBox3d local;
+  for (const auto& [bk, unused] : submap.voxels().occupancy().blocks()) {
+    local.extend(bk.cast<double>() * block);
+    local.extend((bk.cast<double>() + Vec3d::Ones()) * block);
+  }
+  if (!local.isEmpty()) {
+    const Pose T_fleet_submap = T_fleet_session * info.T_world_submap;
+    for (int corner = 0; corner < 8; ++corner)
+      out.bounds_fleet.extend(T_fleet_submap * local.corner(static_cast<Eigen::AlignedBox3d::CornerType>(corner)));
+  } else {
+    out.bounds_fleet.extend((T_fleet_session * info.T_world_submap).translation());  // an empty submap: its anchor
+  }
+  return out;
+}
+
+void prepare_statements(pqxx::connection& connection) {
+  connection.prepare("fleet_insert_occupancy",
+                     "INSERT INTO slamvdb.occupancy(session, submap, bx, by, bz, log_odds, crc) "
+                     "VALUES ($1, $2, $3, $4, $5, $6, $7)");
+  connection.prepare("fleet_insert_semantics",
+                     "INSERT INTO slamvdb.semantics(session, submap, chunk, keys, counts, embeddings, crc, stats, "
+                     "stats_crc) VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9)");
+}
+
+// A catalog row rewritten: the values in statement order after (session, submap) = ($1, $2).
+const std::string kUpdateCatalog =
+    "UPDATE slamvdb.submaps SET t_world_submap = $3::float8[], time_begin = CASE WHEN $4 THEN $5::float8 END, "
+    "time_end = CASE WHEN $4 THEN $6::float8 END, path_length = $7, "
+    "footprint = ST_MakeEnvelope($8, $9, $10, $11, 0), z_min = $12, z_max = $13, blocks = $14, known_voxels = $15, "
+    "occupied_voxels = $16, semantic_voxels = $17, payload_format = $18, payload_crc = $19, payload_bytes = $20, "
+    "revision = revision + 1 WHERE session = $1 AND submap = $2";
+
+}  // namespace
+
+PushReport FleetDatabase::push_map(const SemanticMap& map, const PushOptions& options) {
+  const auto t0 = std::chrono::steady_clock::now();
+  if (options.session.empty()) throw Error("a push needs a session name");
+  ensure_schema();
+  PushReport report;
+  pqxx::connection& connection = connection_->connection;
+  try {
+    {
+      pqxx::work tx(connection);
+      check_or_define_fleet(tx, map, display_url_);
+      TimeRange span;
+      for (const SubmapInfo& s : map.submaps())
+        if (!s.time_range.empty()) span = span.empty() ? s.time_range : TimeRange{std::min(span.begin, s.time_range.begin), std::max(span.end, s.time_range.end)};
+      const pqxx::row session = tx.exec_params1(
+          "INSERT INTO slamvdb.sessions(name, robot, source, time_begin, time_end, t_fleet_session) "
+          "VALUES ($1, $2, $3, CASE WHEN $4 THEN $5::float8 END, CASE WHEN $4 THEN $6::float8 END, $7::float8[]) "
+          "ON CONFLICT (name) DO UPDATE SET robot = EXCLUDED.robot, source = EXCLUDED.source, "
+          "time_begin = LEAST(sessions.time_begin, EXCLUDED.time_begin), "
+          "time_end = GREATEST(sessions.time_end, EXCLUDED.time_end), t_fleet_session = EXCLUDED.t_fleet_session "
+          "RETURNING id, xmax = 0",
+          options.session, options.robot, map.info().source, !span.empty(), span.begin, span.end,
+          pose_array(options.T_fleet_session));
+      report.session_id = session[0].as<int64_t>();
+      report.session_created = session[1].as<bool>();
+      tx.commit();
+    }
+    if (!connection_->statements_prepared) {
+      prepare_statements(connection);
+      connection_->statements_prepared = true;
+    }
+    const std::vector<SubmapInfo> submaps = map.submaps();
+    std::size_t done = 0;
+    for (const SubmapInfo& info : submaps) {
+      map.read_submap(info.id, [&](const Submap& submap) {
+        const EncodedSubmap e = encode(submap, map.params(), options.T_fleet_session);
+        const Eigen::AlignedBox3d& b = e.bounds_fleet;
+        const VoxelMap& v = submap.voxels();
+        const bool timed = !info.time_range.empty();
+        const auto total_bytes = static_cast<int64_t>(e.bytes.occupancy + e.bytes.semantics);
+        pqxx::work tx(connection);
+        const auto values = [&](const std::string& sql) {
+          return tx.exec_params(sql, report.session_id, info.id, pose_array(info.T_world_submap), timed,
+                                timed ? info.time_range.begin : 0.0, timed ? info.time_range.end : 0.0,
+                                info.path_length, b.min().x(), b.min().y(), b.max().x(), b.max().y(), b.min().z(),
+                                b.max().z(), static_cast<int64_t>(v.occupancy().num_blocks()),
+                                static_cast<int64_t>(v.occupancy().num_known_voxels()),
+                                static_cast<int64_t>(v.occupancy().num_occupied_voxels()),
+                                static_cast<int64_t>(v.semantics().size()), kMapFormatVersion, e.payload_crc,
+                                total_bytes);
+        };
+        // The row as it is, locked: a second pusher of the same submap waits here.
+        const pqxx::result existing = tx.exec_params(
+            "SELECT payload_crc = $3 AND payload_format = $4, t_world_submap = $5::float8[] AND "
+            "footprint = ST_MakeEnvelope($6, $7, $8, $9, 0) AND z_min = $10 AND z_max = $11 "
+            "FROM slamvdb.submaps WHERE session = $1 AND submap = $2 FOR UPDATE",
+            report.session_id, info.id, e.payload_crc, kMapFormatVersion, pose_array(info.T_world_submap),
+            b.min().x(), b.min().y(), b.max().x(), b.max().y(), b.min().z(), b.max().z());
+        bool write_payload = true;
+        if (existing.empty()) {
+          values("INSERT INTO slamvdb.submaps(session, submap, t_world_submap, time_begin, time_end, path_length, "
+                 "footprint, z_min, z_max, blocks, known_voxels, occupied_voxels, semantic_voxels, payload_format, "
+                 "payload_crc, payload_bytes) VALUES ($1, $2, $3::float8[], CASE WHEN $4 THEN $5::float8 END, "
+                 "CASE WHEN $4 THEN $6::float8 END, $7, ST_MakeEnvelope($8, $9, $10, $11, 0), $12, $13, $14, $15, "
+                 "$16, $17, $18, $19, $20)");
+          ++report.submaps_added;
+        } else if (existing[0][0].as<bool>()) {
+          write_payload = false;
+          if (existing[0][1].as<bool>()) {
+            ++report.submaps_unchanged;
+          } else {
+            values(kUpdateCatalog);
+            ++report.anchors_moved;
+          }
+        } else {
+          tx.exec_params("DELETE FROM slamvdb.occupancy WHERE session = $1 AND submap = $2", report.session_id, info.id);
+          tx.exec_params("DELETE FROM slamvdb.semantics WHERE session = $1 AND submap = $2", report.session_id, info.id);
+          values(kUpdateCatalog);
+          ++report.payloads_replaced;
+        }
+        if (write_payload) {
+          for (const OwnedOccupancyRow& r : e.occupancy)
+            tx.exec_prepared("fleet_insert_occupancy", report.session_id, info.id, r.key.x(), r.key.y(), r.key.z(),
+                             bytea(r.log_odds), r.crc);
+          for (const OwnedSemanticRow& r : e.semantics)
+            tx.exec_prepared("fleet_insert_semantics", report.session_id, info.id, r.chunk, bytea(r.keys),
+                             bytea(r.counts), bytea(r.embeddings), r.crc, bytea(r.stats), r.stats_crc);
+          report.rows_written += e.occupancy.size() + e.semantics.size();
+          report.payload_bytes += static_cast<uint64_t>(total_bytes);
+        }
+        tx.commit();
+      });
+      if (options.on_submap) options.on_submap(++done, submaps.size());
+    }
+  } catch (const Error&) {
+    throw;
+  } catch (const pqxx::failure& e) {
+    throw Error(fmt::format("push to the fleet database {}: {}", display_url_, trimmed_message(e.what())));
+  }
+  report.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return report;
+}
+
+}  // namespace slamvdb::fleet
