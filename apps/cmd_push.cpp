@@ -75,7 +75,10 @@ void add(CLI::App& root) {
         throw CLI::ValidationError(e.what());
       }
     }
-    fleet::FleetDatabase fleet(opt->db);  // a wrong URL fails here, before the map is read
+    // A wrong URL or a map the fleet cannot take fails here, before the voxels are read.
+    fleet::FleetDatabase fleet(opt->db);
+    const MapFileSummary summary = read_map_summary(opt->map);
+    fleet.check_map(summary.params, summary.info);
     const SemanticMap map = load_map(opt->map);
     ProgressBar bar("push", map.num_submaps(), "submaps");
     push.on_submap = [&](std::size_t done, std::size_t) { bar.update(done); };

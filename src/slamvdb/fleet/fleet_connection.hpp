@@ -13,7 +13,6 @@ namespace slamvdb::fleet {
 
 struct FleetDatabase::Connection {
   pqxx::connection connection;
-  bool statements_prepared = false;  // push's prepared statements (once per connection)
   explicit Connection(const std::string& url) : connection(url) {}
 };
 

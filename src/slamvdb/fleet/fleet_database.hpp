@@ -10,6 +10,8 @@
 
 namespace slamvdb {
 class SemanticMap;
+struct MapParams;
+struct MapInfo;
 }
 
 namespace slamvdb::fleet {
@@ -51,6 +53,9 @@ class FleetDatabase {
   // space, voxel size, ontology or occupancy clamping differ from the fleet's is refused before
   // anything is written (Error naming the entry and both values).
   PushReport push_map(const SemanticMap& map, const PushOptions& options);
+  // The same refusal as push_map's, from a map's parameters alone (a map file's summary), so a
+  // command refuses before it reads the voxels; creates the schema if there is none.
+  void check_map(const MapParams& params, const MapInfo& info);
 
   const std::string& display_url() const { return display_url_; }
 

@@ -129,10 +129,10 @@ TEST_F(FleetPush, AMapOfAnotherEmbeddingSpaceOrVoxelSizeIsRefusedBeforeAnythingI
                                  "slamvdb.submaps) || ' ' || (SELECT count(*) FROM slamvdb.occupancy)");
   const std::string space =
       slamvdb::testing::error_of([&] { fleet.push_map(patch_map(1, 10, "lseg-real"), {.session = "tuesday"}); });
-  EXPECT_NE(space.find("'model_id': the fleet has fleet-test-space, the map lseg-real"), std::string::npos) << space;
+  EXPECT_NE(space.find("'model_id': the fleet has 'fleet-test-space', the map 'lseg-real'"), std::string::npos) << space;
   const std::string voxel = slamvdb::testing::error_of(
       [&] { fleet.push_map(patch_map(1, 10, "fleet-test-space", 0.2), {.session = "tuesday"}); });
-  EXPECT_NE(voxel.find("'voxel_size': the fleet has 0.25, the map 0.2"), std::string::npos) << voxel;
+  EXPECT_NE(voxel.find("'voxel_size': the fleet has '0.25', the map '0.2'"), std::string::npos) << voxel;
   EXPECT_EQ(sql("SELECT (SELECT count(*) FROM slamvdb.sessions) || ' ' || (SELECT count(*) FROM slamvdb.submaps) || "
                 "' ' || (SELECT count(*) FROM slamvdb.occupancy)"),
             before);

@@ -37,6 +37,19 @@ TEST(PushCommand, PushesAMapFileOnceAndAgainWritesNothing) {
   ASSERT_EQ(again.exit_code, 0) << again.output;
   EXPECT_NE(again.output.find("\"submaps_unchanged\": 2"), std::string::npos) << again.output;
   EXPECT_NE(again.output.find("\"rows_written\": 0"), std::string::npos) << again.output;
+
+  // A map at another voxel size is refused from its summary, before its voxels are read.
+  MapParams coarse;
+  coarse.occupancy.voxel_size = 0.5;
+  coarse.semantic.dim = 8;
+  const auto other = tmp.path / "coarse.svdb";
+  save_map(other, SemanticMap(coarse, {.model_id = "simulated-clip-test"}));
+  const auto refused = run_command(shell_quote(SLAMVDB_CLI_PATH) + " push " + quote_path(other) + " --db " +
+                                   shell_quote(server.url(db)) + " 2>&1");
+  EXPECT_EQ(refused.exit_code, 1) << refused.output;
+  EXPECT_NE(refused.output.find("in 'voxel_size': the fleet has '0.2', the map '0.5'"), std::string::npos)
+      << refused.output;
+  EXPECT_EQ(slamvdb::testing::psql_value(server, "SELECT count(*) FROM slamvdb.sessions", db), "1");
 }
 
 TEST(PushCommand, ErrorsAreExitOneWithTheReasonAndUsageErrorsExitTwo) {
