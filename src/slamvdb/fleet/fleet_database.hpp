@@ -6,13 +6,10 @@
 #include <string>
 #include <string_view>
 
-#include "slamvdb/fleet/fleet_push.hpp"
+#include <functional>
 
-namespace slamvdb {
-class SemanticMap;
-struct MapParams;
-struct MapInfo;
-}
+#include "slamvdb/fleet/fleet_pull.hpp"
+#include "slamvdb/fleet/fleet_push.hpp"
 
 namespace slamvdb::fleet {
 
@@ -56,6 +53,14 @@ class FleetDatabase {
   // The same refusal as push_map's, from a map's parameters alone (a map file's summary), so a
   // command refuses before it reads the voxels; creates the schema if there is none.
   void check_map(const MapParams& params, const MapInfo& info);
+
+  // The fleet's parameters and embedding space (Error when nothing was pushed yet).
+  FleetDefinition definition();
+  // The submaps whose footprint meets the region, session by session in push order, each read
+  // in one snapshot and checked row by row as a map file's are (CRCs, values, counts: a payload
+  // damaged in the database is an Error naming the session, submap and row), handed to `sink`
+  // one at a time (memory: one submap).
+  PullReport pull(const PullRequest& request, const std::function<void(PulledSubmap&&)>& sink);
 
   const std::string& display_url() const { return display_url_; }
 

@@ -29,18 +29,21 @@ std::string entry_or_absent(const store::Meta& meta, const char* key) {
   return it == meta.end() ? std::string("(absent)") : it->second;
 }
 
-// The map's entries that the fleet row holds.
-nlohmann::json shared_entries(const MapParams& params, const MapInfo& info) {
-  const store::Meta meta = store::map_meta(params, info);
-  nlohmann::json shared = nlohmann::json::object();
-  for (const char* key : kSharedEntries) shared[key] = entry_or_absent(meta, key);
-  return shared;
+// The fleet row's parameters: the defining map's meta entries without those that describe one
+// map only (its source, options, colours, fusion rule); pull makes maps from them.
+nlohmann::json fleet_entries(const MapParams& params, const MapInfo& info) {
+  store::Meta meta = store::map_meta(params, info);
+  for (const char* own : {"source", "config", "colour_basis", "fusion", "features"}) meta.erase(own);
+  nlohmann::json entries = nlohmann::json::object();
+  for (const auto& [key, value] : meta) entries[key] = value;
+  for (const char* key : kSharedEntries) entries[key] = entry_or_absent(meta, key);
+  return entries;
 }
 
 // Checks the map against the fleet row; with `define`, the first map pushed defines it.
 void check_fleet(pqxx::transaction_base& tx, const MapParams& params, const MapInfo& info, bool define,
                  const std::string& display_url) {
-  const nlohmann::json ours = shared_entries(params, info);
+  const nlohmann::json ours = fleet_entries(params, info);
   if (define)
     tx.exec_params(
         "INSERT INTO slamvdb.fleet(voxel_size, semantic_dim, model_id, ontology, params) "

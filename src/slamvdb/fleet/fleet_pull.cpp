@@ -1,0 +1,149 @@
+// Pulling a region out of the fleet: PostGIS selects the submaps whose footprint meets it, each
+// submap's rows are read and checked by the map file's own row readers (store/submap_payload.hpp).
+#include <fmt/format.h>
+
+#include <chrono>
+#include <nlohmann/json.hpp>
+
+#include "slamvdb/core/error.hpp"
+#include "slamvdb/fleet/fleet_connection.hpp"
+#include "slamvdb/store/map_rows.hpp"
+#include "slamvdb/store/submap_payload.hpp"
+
+namespace slamvdb::fleet {
+namespace {
+
+std::span<const std::byte> bytes_of(const pqxx::binarystring& b) {
+  return {reinterpret_cast<const std::byte*>(b.data()), b.size()};
+}
+
+// A text[] literal: each element double-quoted, backslash and quote escaped.
+std::string text_array(const std::vector<std::string>& items) {
+  std::string out = "{";
+  for (const std::string& item : items) {
+    out += out.size() > 1 ? ",\"" : "\"";
+    for (const char c : item) {
+      if (c == '"' || c == '\\') out += '\\';
+      out += c;
+    }
+    out += '"';
+  }
+  return out + "}";
+}
+
+Pose pose_of(const pqxx::field& f, const std::string& what) {
+  // float8[] in text form: {a,b,...}, 16 entries row-major.
+  std::string text = f.c_str();
+  if (text.size() < 2 || text.front() != '{' || text.back() != '}')
+    throw Error(fmt::format("{}: '{}' is not a pose array", what, text));
+  std::vector<double> v;
+  std::size_t start = 1;
+  while (start < text.size() - 1) {
+    const std::size_t end = std::min(text.find(',', start), text.size() - 1);
+    v.push_back(std::stod(text.substr(start, end - start)));
+    start = end + 1;
+  }
+  if (v.size() != 16) throw Error(fmt::format("{}: {} entries, expected 16", what, v.size()));
+  Eigen::Matrix4d m;
+  for (int r = 0; r < 4; ++r)
+    for (int c = 0; c < 4; ++c) m(r, c) = v[static_cast<std::size_t>(4 * r + c)];
+  const Eigen::Matrix3d R = m.topLeftCorner<3, 3>();
+  if (!m.allFinite() || (R.transpose() * R - Eigen::Matrix3d::Identity()).norm() > 1e-6 ||
+      !m.row(3).isApprox(Eigen::RowVector4d(0, 0, 0, 1)))
+    throw Error(fmt::format("{} is not a rigid transform", what));
+  Pose T;
+  T.matrix() = m;
+  return T;
+}
+
+}  // namespace
+
+FleetDefinition FleetDatabase::definition() {
+  try {
+    pqxx::read_transaction tx(connection_->connection);
+    if (tx.exec("SELECT to_regclass('slamvdb.fleet') IS NULL")[0][0].as<bool>())
+      throw Error(fmt::format("fleet database {} holds no fleet map (nothing was pushed)", display_url_));
+    const pqxx::result r = tx.exec("SELECT params::text FROM slamvdb.fleet");
+    if (r.empty()) throw Error(fmt::format("fleet database {} holds no fleet map (nothing was pushed)", display_url_));
+    store::Meta meta;
+    const nlohmann::json entries = nlohmann::json::parse(r[0][0].c_str());
+    for (const auto& [key, value] : entries.items())
+      if (value.get<std::string>() != "(absent)") meta[key] = value.get<std::string>();
+    FleetDefinition d;
+    d.params = store::parse_params(meta);
+    d.info.model_id = store::meta_value(meta, "model_id");
+    d.info.ontology = store::meta_value(meta, "ontology");
+    return d;
+  } catch (const pqxx::failure& e) {
+    throw Error(fmt::format("fleet database {}: {}", display_url_, trimmed_message(e.what())));
+  }
+}
+
+PullReport FleetDatabase::pull(const PullRequest& request, const std::function<void(PulledSubmap&&)>& sink) {
+  const auto t0 = std::chrono::steady_clock::now();
+  const FleetDefinition fleet = definition();
+  PullReport report;
+  try {
+    // One snapshot for the whole pull: a push or correction meanwhile is seen entirely or not at all.
+    pqxx::transaction<pqxx::repeatable_read, pqxx::read_only> tx(connection_->connection);
+    const Eigen::AlignedBox3d& b = request.box_fleet;
+    const std::string names = text_array(request.sessions);
+    const pqxx::result submaps = tx.exec_params(
+        "SELECT s.id, s.name, m.submap, m.t_world_submap::text, s.t_fleet_session::text, m.time_begin, m.time_end, "
+        "m.path_length, m.blocks, m.known_voxels, m.occupied_voxels, m.semantic_voxels, m.payload_format "
+        "FROM slamvdb.submaps m JOIN slamvdb.sessions s ON s.id = m.session "
+        "WHERE m.footprint && ST_MakeEnvelope($1, $2, $3, $4, 0) AND m.z_max >= $5 AND m.z_min <= $6 "
+        "AND ($7 OR s.name = ANY($8::text[])) ORDER BY s.id, m.submap",
+        b.min().x(), b.min().y(), b.max().x(), b.max().y(), b.min().z(), b.max().z(), request.sessions.empty(), names);
+    for (const pqxx::row& row : submaps) {
+      const int64_t session = row[0].as<int64_t>();
+      const std::string name = row[1].as<std::string>();
+      const int id = row[2].as<int>();
+      const std::string where = fmt::format("session '{}' submap {}", name, id);
+      SubmapSummary summary;
+      summary.info.id = id;
+      summary.info.T_world_submap = pose_of(row[4], where + " session frame") * pose_of(row[3], where + " anchor");
+      if (!row[5].is_null()) summary.info.time_range = {row[5].as<double>(), row[6].as<double>()};
+      summary.info.path_length = row[7].as<double>();
+      summary.info.finished = true;
+      summary.blocks = row[8].as<std::size_t>();
+      summary.known_voxels = row[9].as<std::size_t>();
+      summary.occupied_voxels = row[10].as<std::size_t>();
+      summary.semantic_voxels = row[11].as<std::size_t>();
+      const int format = row[12].as<int>();
+      try {
+        store::OccupancyRowReader occupancy(id, format, fleet.params);
+        for (const pqxx::row& r : tx.exec_params("SELECT bx, by, bz, log_odds, crc FROM slamvdb.occupancy WHERE "
+                                                 "session = $1 AND submap = $2",
+                                                 session, id)) {
+          const pqxx::binarystring blob(r[3]);
+          occupancy.add(r[0].as<int64_t>(), r[1].as<int64_t>(), r[2].as<int64_t>(), bytes_of(blob), r[4].as<int64_t>());
+          ++report.rows, report.payload_bytes += blob.size();
+        }
+        store::SemanticChunkReader semantics(id, format, fleet.params);
+        for (const pqxx::row& r : tx.exec_params("SELECT chunk, keys, counts, embeddings, crc, stats, stats_crc FROM "
+                                                 "slamvdb.semantics WHERE session = $1 AND submap = $2 ORDER BY chunk",
+                                                 session, id)) {
+          const pqxx::binarystring keys(r[1]), counts(r[2]), embeddings(r[3]), stats(r[5]);
+          semantics.add(r[0].as<int64_t>(), bytes_of(keys), bytes_of(counts), bytes_of(embeddings), r[4].as<int64_t>(),
+                        bytes_of(stats), r[6].as<int64_t>());
+          ++report.rows, report.payload_bytes += keys.size() + counts.size() + embeddings.size() + stats.size();
+        }
+        PulledSubmap pulled{name, id, summary.info,
+                            VoxelMap(fleet.params, occupancy.finish(summary), semantics.finish(summary))};
+        pulled.info.id = static_cast<int>(report.submaps);  // renumbered: ids of different sessions collide
+        sink(std::move(pulled));
+      } catch (const Error& e) {
+        throw Error(fmt::format("fleet database {}, {}: {}", display_url_, where, e.what()));
+      }
+      if (report.sessions.empty() || report.sessions.back() != name) report.sessions.push_back(name);
+      ++report.submaps;
+    }
+  } catch (const pqxx::failure& e) {
+    throw Error(fmt::format("pull from the fleet database {}: {}", display_url_, trimmed_message(e.what())));
+  }
+  report.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return report;
+}
+
+}  // namespace slamvdb::fleet

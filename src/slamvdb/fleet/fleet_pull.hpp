@@ -1,0 +1,41 @@
+#pragma once
+// What a pull from the fleet map takes and gives (FleetDatabase::pull): the submaps of a region,
+// from every session or the named ones, in the fleet frame.
+#include <Eigen/Geometry>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "slamvdb/map/semantic_map.hpp"
+
+namespace slamvdb::fleet {
+
+struct PullRequest {
+  Eigen::AlignedBox3d box_fleet;      // the region (fleet frame, metres): submaps whose footprint meets it
+  std::vector<std::string> sessions{};  // empty: every session
+};
+
+// One submap as pulled: renumbered (ids of different sessions collide), anchored in the fleet
+// frame (T_fleet_session * T_world_submap), with where it came from.
+struct PulledSubmap {
+  std::string session;
+  int session_submap_id = 0;
+  SubmapInfo info;
+  VoxelMap voxels;
+};
+
+struct PullReport {
+  std::size_t submaps = 0;
+  uint64_t rows = 0;           // payload rows read and checked
+  uint64_t payload_bytes = 0;  // their bytes
+  std::vector<std::string> sessions;  // the sessions that had submaps in the region, by name
+  double seconds = 0;
+};
+
+// The map every pull builds on: the fleet's parameters and embedding space.
+struct FleetDefinition {
+  MapParams params;
+  MapInfo info;
+};
+
+}  // namespace slamvdb::fleet
