@@ -10,8 +10,10 @@
 #include "feature_options.hpp"
 #include "io_options.hpp"
 #include "option_checks.hpp"
+#include "region_options.hpp"
 #include "slamvdb/core/text_escape.hpp"
 #include "slamvdb/io/nav_grid_files.hpp"
+#include "slamvdb/query/class_summary.hpp"
 #include "slamvdb/query/nav_grid.hpp"
 #include "slamvdb/query/map_query.hpp"
 #include "slamvdb/store/map_store.hpp"
@@ -25,6 +27,7 @@ struct Options {
   double robot_height = NavGridOptions{}.robot_height;
   float min_confidence = 0.f;
   std::vector<std::string> costs;  // NAME=COST
+  RegionOptions region;
 };
 
 // Cost per class of the query set: --cost overrides, then the paper's terrain classes; a class
@@ -72,32 +75,28 @@ void run(const Options& opt) {
   const SemanticMap map = load_map(opt.map);
   ClassifyOptions options;
   options.void_to_second_best = !opt.no_void_rule;
-  std::vector<ClassifiedCell> cells =
-      classify_map(map, queries, options, opt.ignore_model_id ? ModelIdCheck::kIgnore : ModelIdCheck::kRequireMatch);
+  const ModelIdCheck model_check = opt.ignore_model_id ? ModelIdCheck::kIgnore : ModelIdCheck::kRequireMatch;
+  const std::optional<QueryRegion> region = opt.region.region();
+  std::vector<ClassifiedCell> cells = region ? classify_region(map, queries, *region, options, model_check)
+                                             : classify_map(map, queries, options, model_check);
   sort_by_cell(cells);
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  std::vector<std::size_t> per_class(static_cast<std::size_t>(queries.size()), 0);
-  std::size_t unclassified = 0, uncertain = 0, statistics_unknown = 0;
-  for (const ClassifiedCell& c : cells) {
-    statistics_unknown += !c.stats.known();
-    if (c.match.class_index == kNoClass) ++unclassified;
-    else if (is_uncertain(c, opt.min_confidence)) ++uncertain;
-    else ++per_class[static_cast<std::size_t>(c.match.class_index)];
-  }
-  fmt::print("{}: {} semantic voxels classified with {} ({} classes, void -> second best {}) in {:.2f} s\n", opt.map,
-             cells.size(), opt.queries, queries.size(), opt.no_void_rule ? "off" : "on", seconds);
+  const ClassSummary summary = summarize_classes(cells, queries, opt.min_confidence);
+  fmt::print("{}: {} semantic voxels{} classified with {} ({} classes, void -> second best {}) in {:.2f} s\n", opt.map,
+             cells.size(), region ? " in the region (--bbox / --near)" : "", opt.queries, queries.size(),
+             opt.no_void_rule ? "off" : "on", seconds);
   fmt::print("| class | voxels | share |\n|---|---|---|\n");
   for (int k = 0; k < queries.size(); ++k)
-    fmt::print("| {} | {} | {:.1f}% |\n", markdown_cell(queries.names[k]), per_class[k],
-               cells.empty() ? 0.0 : 100.0 * per_class[k] / cells.size());
+    fmt::print("| {} | {} | {:.1f}% |\n", markdown_cell(queries.names[k]), summary.per_class[k],
+               summary.percent(summary.per_class[k]));
   if (opt.min_confidence > 0)
-    fmt::print("| uncertain (confidence < {}) | {} | {:.1f}% |\n", opt.min_confidence, uncertain,
-               cells.empty() ? 0.0 : 100.0 * uncertain / cells.size());
-  if (unclassified) fmt::print("| (no class: zero embedding) | {} | |\n", unclassified);
-  if (statistics_unknown)
+    fmt::print("| uncertain (confidence < {}) | {} | {:.1f}% |\n", opt.min_confidence, summary.uncertain,
+               summary.percent(summary.uncertain));
+  if (summary.unclassified) fmt::print("| (no class: zero embedding) | {} | |\n", summary.unclassified);
+  if (summary.statistics_unknown)
     fmt::print("{} voxels have no observation statistics (a map file before format 3): their confidence is the class "
                "margin alone\n",
-               statistics_unknown);
+               summary.statistics_unknown);
   if (!opt.csv.empty()) {
     write_classified_csv(opt.csv, cells, queries, opt.min_confidence);
     fmt::print("CSV  {}: {} rows\n", opt.csv, cells.size());
@@ -160,12 +159,17 @@ void add(CLI::App& root) {
                   "(-1) in the grid. 0: off")
       ->capture_default_str()
       ->check(finite_range(0, 1));
+  opt->region.add_to(cmd, "voxels classified (the table and -o)");
   cmd->add_flag("--no-void-rule", opt->no_void_rule, "Let void classes win (the paper's rule is on by default)");
   cmd->add_flag("--ignore-model-id", opt->ignore_model_id,
                 "Accept queries whose model id differs from the map's (the dimension is still checked)");
   add_option_checks(cmd, [opt] {
     if (!opt->png.empty() && std::filesystem::path(opt->png).extension() != ".png")
       usage_error(fmt::format("--png {}: the picture is written as .png", opt->png));
+    // A picture or grid of part of the map is GET /api/nav-grid?bbox= (to come), not a cut of the whole map's.
+    if (opt->region.given() && (!opt->png.empty() || !opt->grid.empty()))
+      usage_error("--bbox / --near limit the table and -o, not --png or --grid");
+    opt->region.region();
   });
   auto io = std::make_shared<IoOptions>(cmd);
   io->input("map", opt->map);

@@ -21,28 +21,20 @@
 
 #include <absl/container/flat_hash_map.h>
 #include "slamvdb/ontology/ontology.hpp"
+#include "slamvdb/query/class_summary.hpp"
 #include "slamvdb/query/map_query.hpp"
 
 namespace slamvdb::cli {
-
-// The class name written for a cell: empty without a class, `uncertain` below min_confidence.
-inline std::string_view class_label(const ClassifiedCell& c, const QuerySet& queries, float min_confidence) {
-  if (c.match.class_index == kNoClass) return {};
-  return is_uncertain(c, min_confidence) ? std::string_view("uncertain")
-                                         : std::string_view(queries.names[c.match.class_index]);
-}
 
 // One row per semantic voxel of the index (cell centre in the world frame):
 // x,y,z,class,score,margin,count,confidence; the class is `uncertain` below min_confidence (score
 // and margin stay the best class's). `cells` in the order to write (sort_by_cell for a stable file).
 inline void write_classified_csv(const std::filesystem::path& path, const std::vector<ClassifiedCell>& cells,
                                  const QuerySet& queries, float min_confidence = 0.f) {
-  CsvWriter csv({"x", "y", "z", "class", "score", "margin", "count", "confidence"});
+  CsvWriter csv({"x", "y", "z", "class", "score", "margin", "count", "confidence"});  // classified_columns()
   for (const ClassifiedCell& c : cells) {
-    const Vec3d& p = c.position_world;
-    csv.row({fmt::format("{:.3f}", p.x()), fmt::format("{:.3f}", p.y()), fmt::format("{:.3f}", p.z()),
-             class_label(c, queries, min_confidence), fmt::format("{:.6f}", c.match.score),
-             fmt::format("{:.6f}", c.match.margin), fmt::format("{}", c.count), fmt::format("{:.4f}", c.confidence)});
+    const std::vector<std::string> r = classified_row(c, queries, min_confidence);
+    csv.row({r[0], r[1], r[2], r[3], r[4], r[5], r[6], r[7]});
   }
   write_output_file(path, csv.text());
 }
