@@ -133,6 +133,16 @@ void MapServer::Impl::add_routes() {
        [this](const httplib::Request& req, httplib::Response& res) {
          send_json(res, 200, answer_at(context, decode_at_request(req.body, options.limits)));
        }},
+      {"/api/classes", "GET", limit,
+       [this](const httplib::Request& req, httplib::Response& res) {
+         for (const auto& [name, value] : req.params)  // a typo must not pass as a default
+           if (name != "bbox" && name != "min_confidence")
+             throw RequestError(400, name, fmt::format("unknown parameter '{}' (GET /api/classes takes bbox, min_confidence)", name));
+         const auto param = [&req](const char* name) {
+           return req.has_param(name) ? std::optional<std::string>(req.get_param_value(name)) : std::nullopt;
+         };
+         send_json(res, 200, answer_classes(context, decode_classes_request(param("bbox"), param("min_confidence"))));
+       }},
       {"/api/query", "POST", limit,
        [this](const httplib::Request& req, httplib::Response& res) {
          const QueryRequest request = decode_query_request(req.body, map->space().dim, options.limits);

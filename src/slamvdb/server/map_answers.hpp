@@ -36,6 +36,11 @@ nlohmann::json answer_query(const AnswerContext& context, const QueryRequest& re
 // cell's mean embedding when asked).
 nlohmann::json answer_at(const AnswerContext& context, const AtRequest& request);
 
+// GET /api/classes: the cells in the request's box classified against the server's query set, in
+// cell order, each with the fields of `classify --bbox -o X.csv` (class_label, classified_row's
+// numbers), and the summary `classify` prints (summarize_classes). Without a query set: 400.
+nlohmann::json answer_classes(const AnswerContext& context, const ClassesRequest& request);
+
 // GET /api/submaps: id, anchor, time range and counts of every submap (/api/info's "submaps").
 nlohmann::json answer_submaps(const AnswerContext& context);
 

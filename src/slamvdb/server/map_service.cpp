@@ -26,6 +26,13 @@ std::vector<PointQuery> SemanticMapService::at(std::span<const Vec3d> points_wor
   return query_points(*map_, points_world, queries, options, model_check);
 }
 
+std::vector<ClassifiedCell> SemanticMapService::classes(const QuerySet& queries, const QueryRegion& region,
+                                                        const ClassifyOptions& options, ModelIdCheck model_check) const {
+  std::vector<ClassifiedCell> cells = classify_region(*map_, queries, region, options, model_check);
+  sort_by_cell(cells);
+  return cells;
+}
+
 std::shared_ptr<SemanticMapService> open_map_file_service(const std::filesystem::path& path) {
   const MapFileSummary summary = read_map_summary(path);
   auto map = std::make_shared<const SemanticMap>(load_map(path));

@@ -32,6 +32,9 @@ class MapService {
   // classify_results over the map, for answers that carry a class (a query set given to the server).
   virtual void classify(const QuerySet& queries, std::span<ScoredCell> results, const ClassifyOptions& options,
                         ModelIdCheck model_check) const = 0;
+  // classify_region over the map in cell order (what `classify --bbox -o X.csv` writes).
+  virtual std::vector<ClassifiedCell> classes(const QuerySet& queries, const QueryRegion& region,
+                                              const ClassifyOptions& options, ModelIdCheck model_check) const = 0;
 };
 
 // A SemanticMap in memory, read through its global index (SemanticMap's own locks make concurrent
@@ -47,6 +50,8 @@ class SemanticMapService final : public MapService {
                 ModelIdCheck model_check) const override;
   std::vector<PointQuery> at(std::span<const Vec3d> points_world, const QuerySet* queries,
                              const ClassifyOptions& options, ModelIdCheck model_check) const override;
+  std::vector<ClassifiedCell> classes(const QuerySet& queries, const QueryRegion& region,
+                                      const ClassifyOptions& options, ModelIdCheck model_check) const override;
 
  private:
   std::shared_ptr<const SemanticMap> map_;

@@ -1,5 +1,7 @@
 #include "slamvdb/server/request_decoding.hpp"
 
+#include "slamvdb/core/point_text.hpp"
+
 #include <fmt/format.h>
 
 #include <cmath>
@@ -172,6 +174,30 @@ AtRequest decode_at_request(std::string_view body, const ServerLimits& limits) {
   if (j.contains("embedding")) {
     if (!j["embedding"].is_boolean()) throw RequestError(400, "embedding", "'embedding' is true or false");
     r.embedding = j["embedding"].get<bool>();
+  }
+  return r;
+}
+
+ClassesRequest decode_classes_request(const std::optional<std::string>& bbox,
+                                      const std::optional<std::string>& min_confidence) {
+  ClassesRequest r;
+  if (!bbox) throw RequestError(400, "bbox", "GET /api/classes needs ?bbox=xmin,ymin,zmin,xmax,ymax,zmax (world metres)");
+  try {
+    const std::vector<double> box = parse_numbers(*bbox, "bbox", 6, 6, "xmin,ymin,zmin,xmax,ymax,zmax");
+    r.region = make_region(std::span<const double>(box), std::nullopt, std::nullopt);
+  } catch (const Error& e) {
+    throw RequestError(400, "bbox", e.what());
+  }
+  if (min_confidence) {
+    std::vector<double> c;
+    try {
+      c = parse_numbers(*min_confidence, "min_confidence", 1, 1, "a number 0..1");
+    } catch (const Error& e) {
+      throw RequestError(400, "min_confidence", e.what());
+    }
+    if (!(c[0] >= 0 && c[0] <= 1))
+      throw RequestError(400, "min_confidence", fmt::format("min_confidence {} is not in 0..1", c[0]));
+    r.min_confidence = static_cast<float>(c[0]);
   }
   return r;
 }

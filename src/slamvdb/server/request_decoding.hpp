@@ -5,6 +5,7 @@
 // status it carries); nothing here trusts a size, a depth or a number from the request.
 #include <cstddef>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <string>
 #include <string_view>
 
@@ -71,6 +72,17 @@ struct AtRequest {
 };
 
 AtRequest decode_at_request(std::string_view body, const ServerLimits& limits);
+
+// GET /api/classes?bbox=xmin,ymin,zmin,xmax,ymax,zmax[&min_confidence=c]: the bbox (required; six
+// finite numbers as `classify --bbox` takes them, min <= max) and the confidence below which a
+// cell's class is `uncertain` (0..1, default 0). Errors are 400 naming `bbox` or `min_confidence`.
+struct ClassesRequest {
+  QueryRegion region;
+  float min_confidence = 0.f;
+};
+
+ClassesRequest decode_classes_request(const std::optional<std::string>& bbox,
+                                      const std::optional<std::string>& min_confidence);
 
 // A JSON object from a request body, refusing non-JSON, nesting deeper than `max_depth` (before a
 // deep document is built) and anything but an object.
