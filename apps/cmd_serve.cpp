@@ -157,6 +157,11 @@ void add(CLI::App& root) {
   cmd->add_option("--max-points", opt->limits.max_points, "Most points of one POST /api/at")
       ->capture_default_str()
       ->check(integer_range(1, 10'000'000));
+  cmd->add_option("--max-cells", opt->limits.max_cells,
+                  "Most cells of one GET /api/classes answer; a region holding more is refused with 413 naming the "
+                  "count (split it into smaller boxes)")
+      ->capture_default_str()
+      ->check(integer_range(1, 100'000'000));
   cmd->add_option("--max-concurrent", opt->limits.max_concurrent,
                   "Requests answered at once; more get 503 + Retry-After at once (/healthz and /metrics always answer)")
       ->capture_default_str()

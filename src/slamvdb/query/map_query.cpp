@@ -193,6 +193,12 @@ std::vector<ClassifiedCell> classify_region(const SemanticMap& map, const QueryS
   return out;
 }
 
+std::size_t count_region_cells(const SemanticMap& map, const QueryRegion& region) {
+  std::size_t n = 0;
+  map.read_index([&](const GlobalIndex& index) { n = cells_of_region(index, region).size(); });
+  return n;
+}
+
 void sort_by_cell(std::vector<ClassifiedCell>& cells) {
   tbb::parallel_sort(cells.begin(), cells.end(), [](const ClassifiedCell& a, const ClassifiedCell& b) { return a.cell < b.cell; });
 }

@@ -79,6 +79,10 @@ std::vector<ClassifiedCell> classify_region(const SemanticMap& map, const QueryS
                                             const ClassifyOptions& options = {},
                                             ModelIdCheck model_check = ModelIdCheck::kRequireMatch);
 
+// How many semantic cells classify_region would answer for `region` (the same cells, nothing
+// classified): lets a caller refuse a region too large to answer before doing the work.
+std::size_t count_region_cells(const SemanticMap& map, const QueryRegion& region);
+
 // Cell-key order: the same map always gives the same list, whatever the history of its index.
 void sort_by_cell(std::vector<ClassifiedCell>& cells);
 

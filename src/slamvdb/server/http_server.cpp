@@ -63,6 +63,28 @@ httplib::Server::Handler guarded(ServerMetrics& metrics, std::string route, std:
   };
 }
 
+// The query-string parameters of a GET route: any name the route does not take is refused (a typo
+// must not pass as a default), 400 naming it.
+class GetParams {
+ public:
+  GetParams(const httplib::Request& req, const std::string& route, std::initializer_list<std::string_view> known)
+      : req_(req) {
+    for (const auto& [name, value] : req.params)
+      if (std::find(known.begin(), known.end(), name) == known.end()) {
+        std::string names;
+        for (const std::string_view k : known) names += (names.empty() ? "" : ", ") + std::string(k);
+        throw RequestError(400, name, fmt::format("unknown parameter '{}' ({} takes {})", name, route, names));
+      }
+  }
+  std::optional<std::string> get(const char* name) const {
+    return req_.has_param(name) ? std::optional<std::string>(req_.get_param_value(name)) : std::nullopt;
+  }
+  RegionParams region() const { return {get("bbox"), get("near"), get("radius")}; }
+
+ private:
+  const httplib::Request& req_;
+};
+
 // "Authorization: Bearer TOKEN" against the token, in time independent of where they differ.
 bool has_token(const httplib::Request& req, const std::string& token) {
   const std::string header = req.get_header_value("Authorization");
@@ -135,13 +157,9 @@ void MapServer::Impl::add_routes() {
        }},
       {"/api/classes", "GET", limit,
        [this](const httplib::Request& req, httplib::Response& res) {
-         for (const auto& [name, value] : req.params)  // a typo must not pass as a default
-           if (name != "bbox" && name != "min_confidence")
-             throw RequestError(400, name, fmt::format("unknown parameter '{}' (GET /api/classes takes bbox, min_confidence)", name));
-         const auto param = [&req](const char* name) {
-           return req.has_param(name) ? std::optional<std::string>(req.get_param_value(name)) : std::nullopt;
-         };
-         send_json(res, 200, answer_classes(context, decode_classes_request(param("bbox"), param("min_confidence"))));
+         const GetParams params(req, "GET /api/classes", {"bbox", "near", "radius", "min_confidence"});
+         const ClassesRequest request = decode_classes_request(params.region(), params.get("min_confidence"));
+         send_json(res, 200, answer_classes(context, request, options.limits.max_cells));
        }},
       {"/api/query", "POST", limit,
        [this](const httplib::Request& req, httplib::Response& res) {

@@ -134,9 +134,15 @@ nlohmann::json answer_at(const AnswerContext& context, const AtRequest& request)
   return {{"encoder", encoder_json(context)}, {"count", answers.size()}, {"found", found}, {"results", std::move(rows)}};
 }
 
-nlohmann::json answer_classes(const AnswerContext& context, const ClassesRequest& request) {
+nlohmann::json answer_classes(const AnswerContext& context, const ClassesRequest& request, std::size_t max_cells) {
   if (!context.queries)
     throw RequestError(400, "", "GET /api/classes needs a query set: this server was started without --queries");
+  // Refused before classifying: a city-sized region must cost a count, not a classification.
+  if (const std::size_t n = context.map->region_cells(request.region); n > max_cells)
+    throw RequestError(413, request.region.box ? "bbox" : "radius",
+                       fmt::format("the region holds {} semantic cells; GET /api/classes answers at most {} (the "
+                                   "server's --max-cells): split the region into smaller boxes",
+                                   n, max_cells));
   const QuerySet& queries = *context.queries;
   std::vector<ClassifiedCell> cells;
   try {

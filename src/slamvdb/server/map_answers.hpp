@@ -38,8 +38,10 @@ nlohmann::json answer_at(const AnswerContext& context, const AtRequest& request)
 
 // GET /api/classes: the cells in the request's box classified against the server's query set, in
 // cell order, each with the fields of `classify --bbox -o X.csv` (class_label, classified_row's
-// numbers), and the summary `classify` prints (summarize_classes). Without a query set: 400.
-nlohmann::json answer_classes(const AnswerContext& context, const ClassesRequest& request);
+// numbers), and the summary `classify` prints (summarize_classes). Without a query set: 400; a
+// region holding more than `max_cells` cells: 413 naming the count and the limit (counted before
+// anything is classified).
+nlohmann::json answer_classes(const AnswerContext& context, const ClassesRequest& request, std::size_t max_cells);
 
 // GET /api/submaps: id, anchor, time range and counts of every submap (/api/info's "submaps").
 nlohmann::json answer_submaps(const AnswerContext& context);

@@ -33,6 +33,10 @@ std::vector<ClassifiedCell> SemanticMapService::classes(const QuerySet& queries,
   return cells;
 }
 
+std::size_t SemanticMapService::region_cells(const QueryRegion& region) const {
+  return count_region_cells(*map_, region);
+}
+
 std::shared_ptr<SemanticMapService> open_map_file_service(const std::filesystem::path& path) {
   const MapFileSummary summary = read_map_summary(path);
   auto map = std::make_shared<const SemanticMap>(load_map(path));

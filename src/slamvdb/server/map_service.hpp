@@ -35,6 +35,8 @@ class MapService {
   // classify_region over the map in cell order (what `classify --bbox -o X.csv` writes).
   virtual std::vector<ClassifiedCell> classes(const QuerySet& queries, const QueryRegion& region,
                                               const ClassifyOptions& options, ModelIdCheck model_check) const = 0;
+  // How many cells classes() would answer for `region` (count_region_cells): checked against a limit first.
+  virtual std::size_t region_cells(const QueryRegion& region) const = 0;
 };
 
 // A SemanticMap in memory, read through its global index (SemanticMap's own locks make concurrent
@@ -52,6 +54,7 @@ class SemanticMapService final : public MapService {
                              const ClassifyOptions& options, ModelIdCheck model_check) const override;
   std::vector<ClassifiedCell> classes(const QuerySet& queries, const QueryRegion& region,
                                       const ClassifyOptions& options, ModelIdCheck model_check) const override;
+  std::size_t region_cells(const QueryRegion& region) const override;
 
  private:
   std::shared_ptr<const SemanticMap> map_;

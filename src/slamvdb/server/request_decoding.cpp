@@ -178,27 +178,50 @@ AtRequest decode_at_request(std::string_view body, const ServerLimits& limits) {
   return r;
 }
 
-ClassesRequest decode_classes_request(const std::optional<std::string>& bbox,
-                                      const std::optional<std::string>& min_confidence) {
-  ClassesRequest r;
-  if (!bbox) throw RequestError(400, "bbox", "GET /api/classes needs ?bbox=xmin,ymin,zmin,xmax,ymax,zmax (world metres)");
+QueryRegion decode_region_params(const RegionParams& params, const std::string& route) {
+  if (!params.bbox && !params.near && !params.radius)  // a radius alone: make_region names near
+    throw RequestError(400, "bbox", fmt::format("{} needs ?bbox=xmin,ymin,zmin,xmax,ymax,zmax or ?near=x,y[,z]&radius=r "
+                                                "(world metres)", route));
+  std::optional<std::vector<double>> box, near;
+  std::optional<double> radius;
   try {
-    const std::vector<double> box = parse_numbers(*bbox, "bbox", 6, 6, "xmin,ymin,zmin,xmax,ymax,zmax");
-    r.region = make_region(std::span<const double>(box), std::nullopt, std::nullopt);
+    if (params.bbox) box = parse_numbers(*params.bbox, "bbox", 6, 6, "xmin,ymin,zmin,xmax,ymax,zmax");
   } catch (const Error& e) {
     throw RequestError(400, "bbox", e.what());
   }
-  if (min_confidence) {
-    std::vector<double> c;
-    try {
-      c = parse_numbers(*min_confidence, "min_confidence", 1, 1, "a number 0..1");
-    } catch (const Error& e) {
-      throw RequestError(400, "min_confidence", e.what());
-    }
-    if (!(c[0] >= 0 && c[0] <= 1))
-      throw RequestError(400, "min_confidence", fmt::format("min_confidence {} is not in 0..1", c[0]));
-    r.min_confidence = static_cast<float>(c[0]);
+  try {
+    if (params.near) near = parse_numbers(*params.near, "near", 2, 3, "x,y or x,y,z");
+  } catch (const Error& e) {
+    throw RequestError(400, "near", e.what());
   }
+  try {
+    if (params.radius) radius = parse_numbers(*params.radius, "radius", 1, 1, "metres > 0")[0];
+  } catch (const Error& e) {
+    throw RequestError(400, "radius", e.what());
+  }
+  try {
+    return make_region(box ? std::optional<std::span<const double>>(*box) : std::nullopt,
+                       near ? std::optional<std::span<const double>>(*near) : std::nullopt, radius);
+  } catch (const RegionError& e) {
+    throw RequestError(400, e.field(), e.what());
+  }
+}
+
+float decode_confidence_param(const std::string& text, const std::string& field) {
+  std::vector<double> c;
+  try {
+    c = parse_numbers(text, field, 1, 1, "a number 0..1");
+  } catch (const Error& e) {
+    throw RequestError(400, field, e.what());
+  }
+  if (!(c[0] >= 0 && c[0] <= 1)) throw RequestError(400, field, fmt::format("{} {} is not in 0..1", field, c[0]));
+  return static_cast<float>(c[0]);
+}
+
+ClassesRequest decode_classes_request(const RegionParams& region, const std::optional<std::string>& min_confidence) {
+  ClassesRequest r;
+  r.region = decode_region_params(region, "GET /api/classes");
+  if (min_confidence) r.min_confidence = decode_confidence_param(*min_confidence, "min_confidence");
   return r;
 }
 

@@ -91,6 +91,17 @@ TEST(ServeClasses, RowsEqualClassifyBboxAndAreTheWholeMapsRowsInTheBox) {
     EXPECT_EQ(answer.at("unclassified").get<std::size_t>(), by_class[""]);
     EXPECT_EQ(answer.at("region").at("bbox").size(), 6u);
   }
+  // near + radius (a vertical cylinder, and a ball): the CLI's rows for the same region.
+  for (const std::string near : {"near=0.2,0.1&radius=1.5", "near=0.2,0.1,0&radius=1.2"}) {
+    const nlohmann::json answer = get_json(s, "/api/classes?" + near, 200);
+    const Rows rows = classes_answer_rows(answer);
+    ASSERT_FALSE(rows.empty()) << near;
+    EXPECT_LT(rows.size(), whole.size()) << near;
+    const auto amp = near.find('&');
+    const std::string cli_args = "--near " + near.substr(5, amp - 5) + " --radius " + near.substr(amp + 8);
+    EXPECT_EQ(rows, classify_cli_rows(s, cli_args)) << cli_args;
+    EXPECT_TRUE(answer.at("region").contains("near")) << answer.at("region").dump();
+  }
   // A box outside the map: no rows, not an error.
   const nlohmann::json nowhere = get_json(s, "/api/classes?bbox=100,100,0,110,110,1", 200);
   EXPECT_EQ(nowhere.at("count").get<std::size_t>(), 0u);
@@ -99,6 +110,10 @@ TEST(ServeClasses, RowsEqualClassifyBboxAndAreTheWholeMapsRowsInTheBox) {
   // Refusals: 400 naming the parameter.
   for (const auto& [query, field] : std::vector<std::pair<std::string, std::string>>{
            {"", "bbox"},
+           {"?near=0,0", "radius"},
+           {"?radius=2", "near"},
+           {"?near=0,0&radius=-1", "radius"},
+           {"?near=0&radius=1", "near"},
            {"?bbox=0,0,0,1,1", "bbox"},
            {"?bbox=0,0,3,1,1,1", "bbox"},
            {"?bbox=0,0,0,1,1,nan", "bbox"},
@@ -118,6 +133,50 @@ TEST(ServeClasses, RowsEqualClassifyBboxAndAreTheWholeMapsRowsInTheBox) {
     EXPECT_NE(r.output.find(option), std::string::npos) << args << "\n" << r.output;
   }
   EXPECT_EQ(s.server.stop(SIGTERM), 0) << s.log();
+}
+
+// --max-cells: a region holding more cells than the limit is refused with 413 naming both counts
+// (the count is the number of rows the region answers without the limit); at the limit it answers.
+TEST(ServeClasses, ARegionOverMaxCellsIsRefusedWith413NamingTheCountAndTheLimit) {
+  testing::TwoClassMap f;
+  const std::string box = "-1.1,-0.9,-1,1.3,1.05,1";
+  std::size_t in_box = 0;
+  {
+    testing::ServerProcess unlimited(SLAMVDB_CLI_PATH,
+                                     {"serve", f.map.string(), "--port", "0", "--queries", f.queries.string(),
+                                      "--ignore-model-id"},
+                                     (f.tmp.path / "serve0.log").string());
+    ASSERT_GT(unlimited.port(), 0) << unlimited.output();
+    httplib::Client client("127.0.0.1", unlimited.port());
+    const auto res = client.Get("/api/classes?bbox=" + box);
+    ASSERT_TRUE(res);
+    ASSERT_EQ(res->status, 200) << res->body;
+    in_box = nlohmann::json::parse(res->body).at("count").get<std::size_t>();
+    EXPECT_EQ(unlimited.stop(SIGTERM), 0);
+  }
+  ASSERT_GT(in_box, 2u);
+  const std::string limit = std::to_string(in_box - 1);
+  testing::ServerProcess server(SLAMVDB_CLI_PATH,
+                                {"serve", f.map.string(), "--port", "0", "--queries", f.queries.string(),
+                                 "--ignore-model-id", "--max-cells", limit},
+                                (f.tmp.path / "serve.log").string());
+  ASSERT_GT(server.port(), 0) << server.output();
+  httplib::Client client("127.0.0.1", server.port());
+  const auto over = client.Get("/api/classes?bbox=" + box);
+  ASSERT_TRUE(over);
+  EXPECT_EQ(over->status, 413) << over->body;
+  const nlohmann::json refusal = nlohmann::json::parse(over->body);
+  const std::string message = refusal.at("error").at("message").get<std::string>();
+  EXPECT_EQ(refusal.at("error").at("field"), "bbox");
+  EXPECT_NE(message.find(std::to_string(in_box) + " semantic cells"), std::string::npos) << message;
+  EXPECT_NE(message.find("at most " + limit), std::string::npos) << message;
+  EXPECT_NE(message.find("--max-cells"), std::string::npos) << message;
+  // A region at or under the limit answers (a smaller box: part of the cells).
+  const auto under = client.Get("/api/classes?bbox=-1.1,-0.9,-1,0,1.05,1");
+  ASSERT_TRUE(under);
+  EXPECT_EQ(under->status, 200) << under->body;
+  EXPECT_LE(nlohmann::json::parse(under->body).at("count").get<std::size_t>(), in_box - 1);
+  EXPECT_EQ(server.stop(SIGTERM), 0);
 }
 
 TEST(ServeClasses, AServerWithoutQueriesSaysItNeedsThem) {
