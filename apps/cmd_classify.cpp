@@ -30,43 +30,20 @@ struct Options {
   RegionOptions region;
 };
 
-// Cost per class of the query set: --cost overrides, then the paper's terrain classes; a class
-// with neither is a usage error (a planner must not guess).
+// Cost per class of the query set (query/nav_grid.hpp's rules): a bad --cost or a class without a
+// cost is a usage error (a planner must not guess).
 std::vector<int8_t> class_costs(const QuerySet& queries, const std::vector<std::string>& overrides) {
-  std::map<std::string, int> given;
-  for (const std::string& item : overrides) {
-    const auto eq = item.find('=');
-    int cost = 0;
-    if (eq == std::string::npos || !CLI::detail::lexical_cast(item.substr(eq + 1), cost) || cost < -1 || cost > 100)
-      usage_error(fmt::format("--cost '{}': expected CLASS=COST with COST in -1 (unknown) .. 100 (lethal)", item));
-    given[item.substr(0, eq)] = cost;
+  try {
+    return nav_class_costs(queries.names, overrides);
+  } catch (const Error& e) {
+    usage_error(fmt::format("--cost: {}", e.what()));
   }
-  std::vector<int8_t> costs;
-  for (const std::string& name : queries.names) {
-    if (const auto it = given.find(name); it != given.end()) {
-      costs.push_back(static_cast<int8_t>(it->second));
-      given.erase(it);
-    } else if (const auto d = default_terrain_cost(name)) {
-      costs.push_back(*d);
-    } else {
-      usage_error(fmt::format("class '{}' has no default navigation cost: give --cost {}=COST", name, name));
-    }
-  }
-  if (!given.empty()) usage_error(fmt::format("--cost: the query set has no class '{}'", given.begin()->first));
-  return costs;
 }
 
 // The files of --grid PREFIX.
 std::vector<std::filesystem::path> nav_grid_files_of(const std::string& prefix) {
   const NavGridFiles files = nav_grid_files(prefix);
   return {files.pgm, files.yaml, files.png};
-}
-
-// The path driven, as far as the map knows it: the submap anchors in the order they were made.
-std::vector<Eigen::Vector2d> submap_path(const SemanticMap& map) {
-  std::vector<Eigen::Vector2d> path;
-  for (const SubmapInfo& s : map.submaps()) path.push_back(s.T_world_submap.translation().head<2>());
-  return path;
 }
 
 void run(const Options& opt) {
@@ -103,8 +80,8 @@ void run(const Options& opt) {
   }
   const std::vector<Rgb> colours = class_colours(queries);
   if (!opt.png.empty()) {
-    const BirdsEyeImage image =
-        write_class_picture(opt.png, map, cells, queries, submap_path(map), "path (submap anchors)", opt.min_confidence);
+    const BirdsEyeImage image = write_class_picture(opt.png, map, cells, queries, submap_path(map),
+                                                    "path (submap anchors)", opt.min_confidence, region);
     fmt::print("PNG  {} (+ .yaml): {}x{} px at {:.3f} m per pixel, terrain layer by class\n", opt.png, image.rgb.cols,
                image.rgb.rows, image.resolution);
   }
@@ -113,6 +90,7 @@ void run(const Options& opt) {
     options.robot_height = opt.robot_height;
     options.class_cost = class_costs(queries, opt.costs);
     options.min_confidence = opt.min_confidence;
+    options.region = region;  // cells are classify_region's for it (GET /api/nav-grid builds the same)
     const NavGrid grid = build_nav_grid(map, cells, options);
     const NavGridFiles files =
         write_nav_grid(opt.grid, grid, queries.names, colours, submap_path(map), opt.min_confidence);
@@ -159,16 +137,13 @@ void add(CLI::App& root) {
                   "(-1) in the grid. 0: off")
       ->capture_default_str()
       ->check(finite_range(0, 1));
-  opt->region.add_to(cmd, "voxels classified (the table and -o)");
+  opt->region.add_to(cmd, "voxels classified and drawn (the table, -o, --png, --grid)");
   cmd->add_flag("--no-void-rule", opt->no_void_rule, "Let void classes win (the paper's rule is on by default)");
   cmd->add_flag("--ignore-model-id", opt->ignore_model_id,
                 "Accept queries whose model id differs from the map's (the dimension is still checked)");
   add_option_checks(cmd, [opt] {
     if (!opt->png.empty() && std::filesystem::path(opt->png).extension() != ".png")
       usage_error(fmt::format("--png {}: the picture is written as .png", opt->png));
-    // A picture or grid of part of the map is GET /api/nav-grid?bbox= (to come), not a cut of the whole map's.
-    if (opt->region.given() && (!opt->png.empty() || !opt->grid.empty()))
-      usage_error("--bbox / --near limit the table and -o, not --png or --grid");
     opt->region.region();
   });
   auto io = std::make_shared<IoOptions>(cmd);

@@ -202,6 +202,8 @@ class ConfigEquivalence : public ::testing::Test {
       for (Sample& s : samples) s.companions = {(name == "--tls-cert" ? "--tls-key=" : "--tls-cert=") + file.string()};
     if (o->get_expected_max() > 1 && !samples.empty())  // a repeatable option: two values at once
       samples.push_back({{samples.front().values.front(), samples.back().values.front()}, {}});
+    if (cmd == "serve" && name == "--cost")  // costs of the query set's classes
+      for (Sample& s : samples) s.companions = {"--queries=" + file.string()};
     return samples;
   }
 

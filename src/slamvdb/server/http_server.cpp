@@ -12,6 +12,7 @@
 #include <thread>
 
 #include "slamvdb/server/httplib_include.hpp"
+#include "slamvdb/server/nav_grid_answer.hpp"
 #include "slamvdb/server/server_metrics.hpp"
 
 namespace slamvdb {
@@ -161,6 +162,17 @@ void MapServer::Impl::add_routes() {
          const ClassesRequest request = decode_classes_request(params.region(), params.get("min_confidence"));
          send_json(res, 200, answer_classes(context, request, options.limits.max_cells));
        }},
+      {"/api/nav-grid", "GET", limit,
+       [this](const httplib::Request& req, httplib::Response& res) {
+         const GetParams params(req, "GET /api/nav-grid",
+                                {"bbox", "near", "radius", "resolution", "format", "robot_height", "min_confidence"});
+         const NavGridRequest request = decode_nav_grid_request({params.region(), params.get("resolution"),
+                                                                 params.get("format"), params.get("robot_height"),
+                                                                 params.get("min_confidence")});
+         NavGridAnswer answer = answer_nav_grid(context, request, options.limits.max_cells);
+         res.status = 200;
+         res.set_content(std::move(answer.body), answer.content_type);
+       }},
       {"/api/query", "POST", limit,
        [this](const httplib::Request& req, httplib::Response& res) {
          const QueryRequest request = decode_query_request(req.body, map->space().dim, options.limits);
@@ -238,6 +250,7 @@ MapServer::MapServer(std::shared_ptr<const MapService> map, std::unique_ptr<Text
   c.text = impl_->text.get();
   c.queries = impl_->queries ? &*impl_->queries : nullptr;
   c.queries_name = o.queries_name;
+  c.nav_costs = o.nav_costs;
   c.classify = o.classify;
   c.model_check = o.model_check;
   impl_->add_routes();

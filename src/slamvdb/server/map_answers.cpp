@@ -178,6 +178,8 @@ nlohmann::json answer_classes(const AnswerContext& context, const ClassesRequest
           {"results", std::move(rows)}};
 }
 
+nlohmann::json region_json(const std::optional<QueryRegion>& region) { return map_answers_detail::region_json(region); }
+
 nlohmann::json answer_submaps(const AnswerContext& context) {
   return {{"encoder", encoder_json(context)}, {"submaps", context.map->info().at("submaps")}};
 }

@@ -22,7 +22,11 @@ struct AnswerContext {
   std::string queries_name = "the server's query set";
   ClassifyOptions classify{};
   ModelIdCheck model_check = ModelIdCheck::kRequireMatch;
+  std::vector<std::string> nav_costs;  // CLASS=COST overrides of the navigation grid (serve --cost)
 };
+
+// The region an answer was limited to, as the request gives it (null: the whole map).
+nlohmann::json region_json(const std::optional<QueryRegion>& region);
 
 // {"model_id", "simulated"} of the text encoder, null without one: part of every answer.
 nlohmann::json encoder_json(const AnswerContext& context);

@@ -225,4 +225,33 @@ ClassesRequest decode_classes_request(const RegionParams& region, const std::opt
   return r;
 }
 
+NavGridRequest decode_nav_grid_request(const NavGridParams& params) {
+  NavGridRequest r;
+  r.region = decode_region_params(params.region, "GET /api/nav-grid");
+  // One finite number in [lo, hi] (lo excluded when `open_low`), 400 naming `field` otherwise.
+  const auto number = [](const std::string& text, const char* field, double lo, double hi, bool open_low) {
+    std::vector<double> v;
+    try {
+      v = parse_numbers(text, field, 1, 1, "a number");
+    } catch (const Error& e) {
+      throw RequestError(400, field, e.what());
+    }
+    if (!(open_low ? v[0] > lo : v[0] >= lo) || !(v[0] <= hi))
+      throw RequestError(400, field, fmt::format("{} {} is not in {}{}..{}", field, v[0], open_low ? "(" : "", lo, hi));
+    return v[0];
+  };
+  if (params.resolution) r.resolution = number(*params.resolution, "resolution", 0, 1e6, true);
+  if (params.robot_height) r.robot_height = number(*params.robot_height, "robot_height", 0.1, 100, false);
+  if (params.min_confidence) r.min_confidence = decode_confidence_param(*params.min_confidence, "min_confidence");
+  if (params.format) {
+    const std::string& f = *params.format;
+    if (f == "json") r.format = NavGridRequest::Format::kJson;
+    else if (f == "pgm") r.format = NavGridRequest::Format::kPgm;
+    else if (f == "png") r.format = NavGridRequest::Format::kPng;
+    else if (f == "yaml") r.format = NavGridRequest::Format::kYaml;
+    else throw RequestError(400, "format", fmt::format("format '{}': json, pgm, png or yaml", f));
+  }
+  return r;
+}
+
 }  // namespace slamvdb

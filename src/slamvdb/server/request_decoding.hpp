@@ -100,6 +100,26 @@ ClassesRequest decode_classes_request(const RegionParams& region, const std::opt
 // A confidence threshold parameter (0..1), 400 naming `field` otherwise.
 float decode_confidence_param(const std::string& text, const std::string& field);
 
+// GET /api/nav-grid?bbox=... | near=&radius= [&resolution=m] [&format=json|pgm|png|yaml]
+// [&robot_height=m] [&min_confidence=c]: the grid `classify --bbox ... --grid` builds for the
+// region. resolution, when given, must be the map's grid cell (checked by the answer: the grid is
+// not resampled); robot_height 0.1..100 (default 1.5, as classify's --robot-height).
+struct NavGridRequest {
+  enum class Format { kJson, kPgm, kPng, kYaml };
+  QueryRegion region;
+  std::optional<double> resolution;
+  Format format = Format::kJson;
+  double robot_height = 1.5;
+  float min_confidence = 0.f;
+};
+
+struct NavGridParams {
+  RegionParams region;
+  std::optional<std::string> resolution, format, robot_height, min_confidence;
+};
+
+NavGridRequest decode_nav_grid_request(const NavGridParams& params);
+
 // A JSON object from a request body, refusing non-JSON, nesting deeper than `max_depth` (before a
 // deep document is built) and anything but an object.
 nlohmann::json parse_json_object(std::string_view body, int max_depth = 8);

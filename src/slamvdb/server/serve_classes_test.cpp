@@ -125,8 +125,7 @@ TEST(ServeClasses, RowsEqualClassifyBboxAndAreTheWholeMapsRowsInTheBox) {
   for (const auto& [args, option] : std::vector<std::pair<std::string, std::string>>{
            {"--bbox 0,0,0,1,1", "--bbox"},
            {"--bbox 0,0,3,1,1,1", "--bbox: the z minimum 3 is above the maximum 1"},
-           {"--near 0,0", "--radius"},
-           {"--bbox 0,0,0,1,1,1 --grid g", "--grid"}}) {
+           {"--near 0,0", "--radius"}}) {
     const auto r = run_command(s.f.cli("classify " + shell_quote(s.f.map.string()) + " --queries " +
                                        shell_quote(s.f.queries.string()) + " --ignore-model-id " + args));
     EXPECT_EQ(r.exit_code, 2) << args << "\n" << r.output;
