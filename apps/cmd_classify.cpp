@@ -25,6 +25,7 @@ struct Options {
   std::string map, queries, csv, grid, png;
   bool no_void_rule = false, ignore_model_id = false;
   double robot_height = NavGridOptions{}.robot_height;
+  double grid_resolution = 0;
   float min_confidence = 0.f;
   std::vector<std::string> costs;  // NAME=COST
   RegionOptions region;
@@ -90,7 +91,13 @@ void run(const Options& opt) {
     options.robot_height = opt.robot_height;
     options.class_cost = class_costs(queries, opt.costs);
     options.min_confidence = opt.min_confidence;
-    options.region = region;  // cells are classify_region's for it (GET /api/nav-grid builds the same)
+    options.region = region;
+    options.resolution = opt.grid_resolution;
+    try {
+      nav_grid_factor(opt.grid_resolution, map.params().index_cell());
+    } catch (const Error& e) {
+      throw Error(fmt::format("--grid-resolution: {}", e.what()));
+    }  // cells are classify_region's for it (GET /api/nav-grid builds the same)
     const NavGrid grid = build_nav_grid(map, cells, options);
     const NavGridFiles files =
         write_nav_grid(opt.grid, grid, queries.names, colours, submap_path(map), opt.min_confidence);
@@ -128,6 +135,11 @@ void add(CLI::App& root) {
                   "Grid: something occupied above the ground up to this height (m) is an obstacle")
       ->capture_default_str()
       ->check(finite_range(0.1, 100));
+  cmd->add_option("--grid-resolution", opt->grid_resolution,
+                  "Grid: metres per cell, a whole multiple of the map's index cell (each cell the worst of the index "
+                  "cells it covers: lethal if one is, else the highest known cost). 0: the index cell")
+      ->capture_default_str()
+      ->check(finite_range(0, 1000));
   cmd->add_option("--cost", opt->costs,
                   "Grid: the cost of a class, CLASS=COST (-1 unknown .. 100 lethal; repeatable). Defaults: smooth 0, "
                   "rough 30, bumpy 60, obstacle 100, active 100, void unknown");

@@ -67,6 +67,49 @@ std::vector<Eigen::Vector2d> submap_path(const SemanticMap& map) {
   return path;
 }
 
+int nav_grid_factor(double resolution, double cell) {
+  if (resolution == 0) return 1;
+  const double k = resolution / cell;
+  const double whole = std::round(k);
+  if (!std::isfinite(k) || whole < 1 || whole > 64 || std::abs(k - whole) > 1e-6 * whole)
+    throw Error(fmt::format("grid resolution {} m is not a whole multiple (1..64) of the map's cell of {} m", resolution,
+                            cell));
+  return static_cast<int>(whole);
+}
+
+namespace {
+
+// Each cell of the result the worst of its k x k cells of `fine` (NavGridOptions::resolution).
+NavGrid coarsened_nav_grid(const NavGrid& fine, int k) {
+  NavGrid g;
+  g.resolution = fine.resolution * k;
+  g.origin = fine.origin;
+  g.width = (fine.width + k - 1) / k;
+  g.height = (fine.height + k - 1) / k;
+  const std::size_t n = static_cast<std::size_t>(g.width) * g.height;
+  g.cost.assign(n, kUnknownCost);
+  g.ground_class.assign(n, -1);
+  g.obstacle.assign(n, 0);
+  g.uncertain.assign(n, 0);
+  for (int row = 0; row < fine.height; ++row)
+    for (int col = 0; col < fine.width; ++col) {
+      const std::size_t f = fine.index(col, row), c = g.index(col / k, row / k);
+      g.obstacle[c] |= fine.obstacle[f];
+      g.uncertain[c] |= fine.uncertain[f];
+      if (fine.cost[f] != kUnknownCost && (g.cost[c] == kUnknownCost || fine.cost[f] > g.cost[c])) {
+        g.cost[c] = fine.cost[f];
+        g.ground_class[c] = fine.ground_class[f];
+      } else if (g.ground_class[c] < 0) {
+        g.ground_class[c] = fine.ground_class[f];
+      }
+    }
+  for (std::size_t c = 0; c < n; ++c)
+    if (g.cost[c] != kUnknownCost) g.uncertain[c] = 0;  // a known cost was taken: not a guess
+  return g;
+}
+
+}  // namespace
+
 Eigen::Vector2i NavGrid::cell_of(double x, double y) const {
   return {static_cast<int>(std::floor((x - origin.x()) / resolution)),
           static_cast<int>(std::floor((y - origin.y()) / resolution))};
@@ -136,7 +179,8 @@ NavGrid build_nav_grid(const SemanticMap& map, const std::vector<ClassifiedCell>
     }
     if (grid.obstacle[i]) grid.cost[i] = kLethalCost;
   }
-  return grid;
+  const int k = nav_grid_factor(options.resolution, res);
+  return k == 1 ? grid : coarsened_nav_grid(grid, k);
 }
 
 }  // namespace slamvdb

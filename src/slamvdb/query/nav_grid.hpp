@@ -30,7 +30,15 @@ struct NavGridOptions {
   // limits the ground and obstacles seen (give one that holds both). Pass the cells of
   // classify_region for the same region. None: the whole map.
   std::optional<QueryRegion> region;
+  // Metres per grid cell: 0 for the map's index cell, else a whole multiple k of it (1..64): each
+  // grid cell is then the worst of its k x k index cells (lethal if one is; else the highest known
+  // cost; unknown only if all are), so that a coarse grid never hides an obstacle.
+  double resolution = 0;
 };
+
+// The factor k of a grid `resolution` over the map's `cell` (0: 1); throws Error naming both when
+// it is not a whole multiple in 1..64.
+int nav_grid_factor(double resolution, double cell);
 
 // The default cost of a class name: the paper's terrain classes (smooth 0, rough 30, bumpy 60,
 // obstacle 100, active 100: moving things, void unknown); nullopt for other names.

@@ -30,11 +30,13 @@ NavGridAnswer answer_nav_grid(const AnswerContext& context, const NavGridRequest
     throw RequestError(400, "", "GET /api/nav-grid needs a query set: this server was started without --queries");
   const QuerySet& queries = *context.queries;
   const double resolution = context.map->grid_resolution();
-  if (request.resolution && std::abs(*request.resolution - resolution) > 1e-9 * resolution)
-    throw RequestError(400, "resolution",
-                       fmt::format("resolution {} m: this map's navigation grid has cells of {} m (its index cell; "
-                                   "the grid is not resampled)",
-                                   *request.resolution, resolution));
+  if (request.resolution) {
+    try {
+      nav_grid_factor(*request.resolution, resolution);
+    } catch (const Error& e) {
+      throw RequestError(400, "resolution", e.what());
+    }
+  }
   // Refused before building: a grid costs what its region holds and spans.
   if (const std::size_t n = context.map->region_cells(request.region); n > max_cells)
     throw RequestError(413, region_field(request.region),
@@ -50,6 +52,7 @@ NavGridAnswer answer_nav_grid(const AnswerContext& context, const NavGridRequest
   options.robot_height = request.robot_height;
   options.min_confidence = request.min_confidence;
   options.region = request.region;
+  options.resolution = request.resolution.value_or(0.0);
   try {
     options.class_cost = nav_class_costs(queries.names, context.nav_costs);
   } catch (const Error& e) {

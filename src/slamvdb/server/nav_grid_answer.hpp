@@ -15,8 +15,8 @@ struct NavGridAnswer {
   std::string body, content_type;
 };
 
-// Refusals (RequestError): no query set (400), a resolution other than the map's cell (400 naming
-// resolution), a class without a cost (400: the server's --cost), a region holding more than
+// Refusals (RequestError): no query set (400), a resolution that is not a whole multiple of the map's cell
+// (400 naming resolution), a class without a cost (400: the server's --cost), a region holding more than
 // `max_cells` semantic cells or spanning more than `max_cells` grid cells (413), a region without
 // occupied cells (404 naming the region's field).
 NavGridAnswer answer_nav_grid(const AnswerContext& context, const NavGridRequest& request, std::size_t max_cells);

@@ -102,8 +102,8 @@ float decode_confidence_param(const std::string& text, const std::string& field)
 
 // GET /api/nav-grid?bbox=... | near=&radius= [&resolution=m] [&format=json|pgm|png|yaml]
 // [&robot_height=m] [&min_confidence=c]: the grid `classify --bbox ... --grid` builds for the
-// region. resolution, when given, must be the map's grid cell (checked by the answer: the grid is
-// not resampled); robot_height 0.1..100 (default 1.5, as classify's --robot-height).
+// region. resolution, when given, must be a whole multiple of the map's cell (checked by the
+// answer: NavGridOptions::resolution); robot_height 0.1..100 (default 1.5, as classify's --robot-height).
 struct NavGridRequest {
   enum class Format { kJson, kPgm, kPng, kYaml };
   QueryRegion region;

@@ -132,6 +132,26 @@ TEST(ServeNavGrid, TheRegionsGridEqualsClassifyGridCellForCellAndIsTheWholeMapsG
     const nlohmann::json refusal = nlohmann::json::parse(nav_get(s, "/api/nav-grid" + query, status, "application/json"));
     EXPECT_EQ(refusal.at("error").at("field"), field) << query;
   }
+  // A coarser grid (twice the map's cell): the CLI's --grid-resolution, byte for byte, and each
+  // cell the worst of its 2 x 2 cells of the fine grid (lethal first, else the highest known cost).
+  {
+    const std::string box = "-2.1,-1.3,-10,1.6,2.2,10";
+    const CliGrid coarse_cli = classify_grid(s, fmt::format("--bbox={} --grid-resolution {}", box, 2 * res));
+    const std::string coarse_pgm =
+        nav_get(s, fmt::format("/api/nav-grid?bbox={}&resolution={}&format=pgm", box, 2 * res), 200, "image/x-portable-graymap");
+    EXPECT_EQ(coarse_pgm, coarse_cli.pgm);
+    const PgmGrid coarse = parse_nav_pgm(coarse_pgm), fine = parse_nav_pgm(classify_grid(s, "--bbox=" + box).pgm);
+    ASSERT_EQ(coarse.width, (fine.width + 1) / 2);
+    ASSERT_EQ(coarse.height, (fine.height + 1) / 2);
+    for (int row = 0; row < coarse.height; ++row)
+      for (int col = 0; col < coarse.width; ++col) {
+        int worst = -1;
+        for (int r = 2 * row; r < std::min(2 * row + 2, fine.height); ++r)
+          for (int c = 2 * col; c < std::min(2 * col + 2, fine.width); ++c)
+            worst = std::max(worst, fine.cost[static_cast<std::size_t>(r) * fine.width + c]);
+        ASSERT_EQ(coarse.cost[static_cast<std::size_t>(row) * coarse.width + col], worst) << col << "," << row;
+      }
+  }
   // The map's own resolution is accepted.
   nav_get(s, fmt::format("/api/nav-grid?bbox=-1,-1,-1,1,1,1&resolution={}", res), 200, "application/json");
   EXPECT_EQ(s.server.stop(SIGTERM), 0) << s.log();
