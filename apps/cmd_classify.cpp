@@ -10,8 +10,10 @@
 #include "feature_options.hpp"
 #include "io_options.hpp"
 #include "option_checks.hpp"
+#include "region_options.hpp"
 #include "slamvdb/core/text_escape.hpp"
 #include "slamvdb/io/nav_grid_files.hpp"
+#include "slamvdb/query/class_summary.hpp"
 #include "slamvdb/query/nav_grid.hpp"
 #include "slamvdb/query/map_query.hpp"
 #include "slamvdb/store/map_store.hpp"
@@ -23,34 +25,20 @@ struct Options {
   std::string map, queries, csv, grid, png;
   bool no_void_rule = false, ignore_model_id = false;
   double robot_height = NavGridOptions{}.robot_height;
+  double grid_resolution = 0;
   float min_confidence = 0.f;
   std::vector<std::string> costs;  // NAME=COST
+  RegionOptions region;
 };
 
-// Cost per class of the query set: --cost overrides, then the paper's terrain classes; a class
-// with neither is a usage error (a planner must not guess).
+// Cost per class of the query set (query/nav_grid.hpp's rules): a bad --cost or a class without a
+// cost is a usage error (a planner must not guess).
 std::vector<int8_t> class_costs(const QuerySet& queries, const std::vector<std::string>& overrides) {
-  std::map<std::string, int> given;
-  for (const std::string& item : overrides) {
-    const auto eq = item.find('=');
-    int cost = 0;
-    if (eq == std::string::npos || !CLI::detail::lexical_cast(item.substr(eq + 1), cost) || cost < -1 || cost > 100)
-      usage_error(fmt::format("--cost '{}': expected CLASS=COST with COST in -1 (unknown) .. 100 (lethal)", item));
-    given[item.substr(0, eq)] = cost;
+  try {
+    return nav_class_costs(queries.names, overrides);
+  } catch (const Error& e) {
+    usage_error(fmt::format("--cost: {}", e.what()));
   }
-  std::vector<int8_t> costs;
-  for (const std::string& name : queries.names) {
-    if (const auto it = given.find(name); it != given.end()) {
-      costs.push_back(static_cast<int8_t>(it->second));
-      given.erase(it);
-    } else if (const auto d = default_terrain_cost(name)) {
-      costs.push_back(*d);
-    } else {
-      usage_error(fmt::format("class '{}' has no default navigation cost: give --cost {}=COST", name, name));
-    }
-  }
-  if (!given.empty()) usage_error(fmt::format("--cost: the query set has no class '{}'", given.begin()->first));
-  return costs;
 }
 
 // The files of --grid PREFIX.
@@ -59,53 +47,42 @@ std::vector<std::filesystem::path> nav_grid_files_of(const std::string& prefix) 
   return {files.pgm, files.yaml, files.png};
 }
 
-// The path driven, as far as the map knows it: the submap anchors in the order they were made.
-std::vector<Eigen::Vector2d> submap_path(const SemanticMap& map) {
-  std::vector<Eigen::Vector2d> path;
-  for (const SubmapInfo& s : map.submaps()) path.push_back(s.T_world_submap.translation().head<2>());
-  return path;
-}
-
 void run(const Options& opt) {
   const QuerySet queries = load_query_set(opt.queries);
   const auto t0 = std::chrono::steady_clock::now();
   const SemanticMap map = load_map(opt.map);
   ClassifyOptions options;
   options.void_to_second_best = !opt.no_void_rule;
-  std::vector<ClassifiedCell> cells =
-      classify_map(map, queries, options, opt.ignore_model_id ? ModelIdCheck::kIgnore : ModelIdCheck::kRequireMatch);
+  const ModelIdCheck model_check = opt.ignore_model_id ? ModelIdCheck::kIgnore : ModelIdCheck::kRequireMatch;
+  const std::optional<QueryRegion> region = opt.region.region();
+  std::vector<ClassifiedCell> cells = region ? classify_region(map, queries, *region, options, model_check)
+                                             : classify_map(map, queries, options, model_check);
   sort_by_cell(cells);
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  std::vector<std::size_t> per_class(static_cast<std::size_t>(queries.size()), 0);
-  std::size_t unclassified = 0, uncertain = 0, statistics_unknown = 0;
-  for (const ClassifiedCell& c : cells) {
-    statistics_unknown += !c.stats.known();
-    if (c.match.class_index == kNoClass) ++unclassified;
-    else if (is_uncertain(c, opt.min_confidence)) ++uncertain;
-    else ++per_class[static_cast<std::size_t>(c.match.class_index)];
-  }
-  fmt::print("{}: {} semantic voxels classified with {} ({} classes, void -> second best {}) in {:.2f} s\n", opt.map,
-             cells.size(), opt.queries, queries.size(), opt.no_void_rule ? "off" : "on", seconds);
+  const ClassSummary summary = summarize_classes(cells, queries, opt.min_confidence);
+  fmt::print("{}: {} semantic voxels{} classified with {} ({} classes, void -> second best {}) in {:.2f} s\n", opt.map,
+             cells.size(), region ? " in the region (--bbox / --near)" : "", opt.queries, queries.size(),
+             opt.no_void_rule ? "off" : "on", seconds);
   fmt::print("| class | voxels | share |\n|---|---|---|\n");
   for (int k = 0; k < queries.size(); ++k)
-    fmt::print("| {} | {} | {:.1f}% |\n", markdown_cell(queries.names[k]), per_class[k],
-               cells.empty() ? 0.0 : 100.0 * per_class[k] / cells.size());
+    fmt::print("| {} | {} | {:.1f}% |\n", markdown_cell(queries.names[k]), summary.per_class[k],
+               summary.percent(summary.per_class[k]));
   if (opt.min_confidence > 0)
-    fmt::print("| uncertain (confidence < {}) | {} | {:.1f}% |\n", opt.min_confidence, uncertain,
-               cells.empty() ? 0.0 : 100.0 * uncertain / cells.size());
-  if (unclassified) fmt::print("| (no class: zero embedding) | {} | |\n", unclassified);
-  if (statistics_unknown)
+    fmt::print("| uncertain (confidence < {}) | {} | {:.1f}% |\n", opt.min_confidence, summary.uncertain,
+               summary.percent(summary.uncertain));
+  if (summary.unclassified) fmt::print("| (no class: zero embedding) | {} | |\n", summary.unclassified);
+  if (summary.statistics_unknown)
     fmt::print("{} voxels have no observation statistics (a map file before format 3): their confidence is the class "
                "margin alone\n",
-               statistics_unknown);
+               summary.statistics_unknown);
   if (!opt.csv.empty()) {
     write_classified_csv(opt.csv, cells, queries, opt.min_confidence);
     fmt::print("CSV  {}: {} rows\n", opt.csv, cells.size());
   }
   const std::vector<Rgb> colours = class_colours(queries);
   if (!opt.png.empty()) {
-    const BirdsEyeImage image =
-        write_class_picture(opt.png, map, cells, queries, submap_path(map), "path (submap anchors)", opt.min_confidence);
+    const BirdsEyeImage image = write_class_picture(opt.png, map, cells, queries, submap_path(map),
+                                                    "path (submap anchors)", opt.min_confidence, region);
     fmt::print("PNG  {} (+ .yaml): {}x{} px at {:.3f} m per pixel, terrain layer by class\n", opt.png, image.rgb.cols,
                image.rgb.rows, image.resolution);
   }
@@ -114,6 +91,13 @@ void run(const Options& opt) {
     options.robot_height = opt.robot_height;
     options.class_cost = class_costs(queries, opt.costs);
     options.min_confidence = opt.min_confidence;
+    options.region = region;
+    options.resolution = opt.grid_resolution;
+    try {
+      nav_grid_factor(opt.grid_resolution, map.params().index_cell());
+    } catch (const Error& e) {
+      throw Error(fmt::format("--grid-resolution: {}", e.what()));
+    }  // cells are classify_region's for it (GET /api/nav-grid builds the same)
     const NavGrid grid = build_nav_grid(map, cells, options);
     const NavGridFiles files =
         write_nav_grid(opt.grid, grid, queries.names, colours, submap_path(map), opt.min_confidence);
@@ -151,6 +135,11 @@ void add(CLI::App& root) {
                   "Grid: something occupied above the ground up to this height (m) is an obstacle")
       ->capture_default_str()
       ->check(finite_range(0.1, 100));
+  cmd->add_option("--grid-resolution", opt->grid_resolution,
+                  "Grid: metres per cell, a whole multiple of the map's index cell (each cell the worst of the index "
+                  "cells it covers: lethal if one is, else the highest known cost). 0: the index cell")
+      ->capture_default_str()
+      ->check(finite_range(0, 1000));
   cmd->add_option("--cost", opt->costs,
                   "Grid: the cost of a class, CLASS=COST (-1 unknown .. 100 lethal; repeatable). Defaults: smooth 0, "
                   "rough 30, bumpy 60, obstacle 100, active 100, void unknown");
@@ -160,12 +149,14 @@ void add(CLI::App& root) {
                   "(-1) in the grid. 0: off")
       ->capture_default_str()
       ->check(finite_range(0, 1));
+  opt->region.add_to(cmd, "voxels classified and drawn (the table, -o, --png, --grid)");
   cmd->add_flag("--no-void-rule", opt->no_void_rule, "Let void classes win (the paper's rule is on by default)");
   cmd->add_flag("--ignore-model-id", opt->ignore_model_id,
                 "Accept queries whose model id differs from the map's (the dimension is still checked)");
   add_option_checks(cmd, [opt] {
     if (!opt->png.empty() && std::filesystem::path(opt->png).extension() != ".png")
       usage_error(fmt::format("--png {}: the picture is written as .png", opt->png));
+    opt->region.region();
   });
   auto io = std::make_shared<IoOptions>(cmd);
   io->input("map", opt->map);

@@ -8,6 +8,7 @@
 #include "feature_options.hpp"
 #include "io_options.hpp"
 #include "option_checks.hpp"
+#include "region_options.hpp"
 #include "text_encoder_option.hpp"
 #include "slamvdb/core/csv.hpp"
 #include "slamvdb/core/point_text.hpp"
@@ -27,8 +28,8 @@ namespace slamvdb::cli::cmd_query {
 namespace {
 
 struct Options {
-  std::string map, queries, output, at_csv, text_model, image_model, ply, png, bbox, near;
-  double radius = 0;  // 0: not given (the option refuses 0)
+  std::string map, queries, output, at_csv, text_model, image_model, ply, png;
+  RegionOptions region;
   std::vector<std::string> text, not_text, classes, not_classes, images, at, vectors, not_vectors;
   std::size_t top_k = 100;
   float threshold = -std::numeric_limits<float>::infinity();
@@ -55,23 +56,6 @@ std::vector<Vec3d> read_points(const Options& opt) {
     points.insert(points.end(), file.points.begin(), file.points.end());
   }
   return points;
-}
-
-// --bbox, --near and --radius as the library's region (query/query_region.hpp, the same one
-// /api/query's "region" makes); none of them: no region. A bad one is a usage error naming it.
-std::optional<QueryRegion> region_of(const Options& opt) {
-  if (opt.bbox.empty() && opt.near.empty() && !(opt.radius > 0)) return std::nullopt;
-  try {
-    std::optional<std::vector<double>> bbox, near;
-    if (!opt.bbox.empty()) bbox = parse_numbers(opt.bbox, "--bbox", 6, 6, "xmin,ymin,zmin,xmax,ymax,zmax");
-    if (!opt.near.empty()) near = parse_numbers(opt.near, "--near", 2, 3, "x,y or x,y,z");
-    return make_region(bbox ? std::optional<std::span<const double>>(*bbox) : std::nullopt,
-                       near ? std::optional<std::span<const double>>(*near) : std::nullopt,
-                       opt.radius > 0 ? std::optional<double>(opt.radius) : std::nullopt,
-                       {"--bbox", "--near", "--radius"});
-  } catch (const Error& e) {
-    usage_error(e.what());
-  }
 }
 
 // The embedding space must be the map's: an encoder of another space answers nothing meaningful.
@@ -215,7 +199,7 @@ void run(const Options& opt) {
     throw CLI::ValidationError("--output", "point look-ups are written as .csv");
   if ((!opt.classes.empty() || !opt.not_classes.empty()) && opt.queries.empty())
     throw CLI::ValidationError("--class", "needs --queries QUERIES.json");
-  const std::optional<QueryRegion> region = region_of(opt);
+  const std::optional<QueryRegion> region = opt.region.region();
   if (spatial && region) throw CLI::ValidationError("--bbox", "--bbox and --near limit a similarity query, not --at points");
   const std::vector<Vec3d> points = spatial ? read_points(opt) : std::vector<Vec3d>{};
   const SemanticMap map = load_map(opt.map);
@@ -341,13 +325,7 @@ void add(CLI::App& root) {
       ->check(integer_range(0, bounds::kMaxCount));
   cmd->add_option("--threshold", opt->threshold, "Keep voxels whose cosine similarity is at least this")
       ->check(finite_range(-1.0, 1.0));
-  cmd->add_option("--bbox", opt->bbox,
-                  "Only voxels whose centre is in this world box: xmin,ymin,zmin,xmax,ymax,zmax (submaps outside it "
-                  "are not read; with --near, the voxel must be in both)");
-  cmd->add_option("--near", opt->near,
-                  "Only voxels within --radius of this world point: x,y,z (a ball) or x,y (a vertical cylinder: "
-                  "distance in x and y, any height)");
-  cmd->add_option("--radius", opt->radius, "Radius of --near in metres")->check(finite_range(0.0, 1e7, true));
+  opt->region.add_to(cmd, "voxels");
   cmd->add_option("--at", opt->at,
                   "A world point to look up (repeatable): x,y,z or \"x y z\", decimal numbers with '.' (no hex, nan, "
                   "inf or trailing text)");
@@ -369,7 +347,7 @@ void add(CLI::App& root) {
   cmd->add_option("--png", opt->png, "Also write the heat map from above (PNG + map_server YAML)");
   add_option_checks(cmd, [opt] {
     output_format(opt->output);
-    region_of(*opt);
+    opt->region.region();
     if (!opt->ply.empty() && output_format(opt->ply) != ".ply") usage_error("--ply " + opt->ply + ": not a .ply name");
     if (!opt->png.empty() && output_format(opt->png) != ".png") usage_error("--png " + opt->png + ": not a .png name");
   });

@@ -29,6 +29,7 @@ struct Options {
   float sim_text_gap = 0.f;
   bool ignore_model_id = false, no_void_rule = false, no_text = false, insecure_no_auth = false;
   ServerLimits limits;
+  std::vector<std::string> costs;  // NAME=COST of the navigation grid
 };
 
 // Another address than loopback needs --token or an explicit --insecure-no-auth: a map must not
@@ -68,7 +69,15 @@ void run(const Options& opt) {
     check_compatible(*queries, map->space().dim, map->space().model_id,
                      opt.ignore_model_id ? ModelIdCheck::kIgnore : ModelIdCheck::kRequireMatch);
   }
+  if (queries && !opt.costs.empty()) {
+    try {
+      nav_class_costs(queries->names, opt.costs);  // a bad --cost is said at start, not per request
+    } catch (const Error& e) {
+      throw Error(fmt::format("--cost: {}", e.what()));
+    }
+  }
   ServerOptions options;
+  options.nav_costs = opt.costs;
   options.bind = opt.bind;
   options.port = opt.port;
   options.limits = opt.limits;
@@ -116,7 +125,7 @@ void run(const Options& opt) {
 void add(CLI::App& root) {
   auto opt = std::make_shared<Options>();
   auto* cmd = root.add_subcommand(
-      "serve", "Serve a map over HTTP (read-only JSON API: /healthz, /metrics, /api/info, /api/submaps, POST /api/query, POST /api/at; README \"slamvdb serve\")");
+      "serve", "Serve a map over HTTP (read-only JSON API: /healthz, /metrics, /api/info, /api/submaps, /api/classes, /api/nav-grid, POST /api/query, POST /api/at; README \"slamvdb serve\")");
   cmd->add_option("map", opt->map, "Map file (.svdb)")->required()->check(CLI::ExistingFile);
   cmd->add_option("--bind", opt->bind,
                   "Address to listen on; another than loopback (127.0.0.1, ::1, localhost) needs --token or "
@@ -157,6 +166,14 @@ void add(CLI::App& root) {
   cmd->add_option("--max-points", opt->limits.max_points, "Most points of one POST /api/at")
       ->capture_default_str()
       ->check(integer_range(1, 10'000'000));
+  cmd->add_option("--max-cells", opt->limits.max_cells,
+                  "Most cells of one GET /api/classes answer; a region holding more is refused with 413 naming the "
+                  "count (split it into smaller boxes)")
+      ->capture_default_str()
+      ->check(integer_range(1, 100'000'000));
+  cmd->add_option("--cost", opt->costs,
+                  "GET /api/nav-grid: the cost of a class, CLASS=COST (as classify --cost: -1 unknown .. 100 lethal; "
+                  "repeatable; defaults: the paper's terrain classes)");
   cmd->add_option("--max-concurrent", opt->limits.max_concurrent,
                   "Requests answered at once; more get 503 + Retry-After at once (/healthz and /metrics always answer)")
       ->capture_default_str()
@@ -166,6 +183,7 @@ void add(CLI::App& root) {
       usage_error(fmt::format("--bind {}: another address than loopback needs --token FILE (or --insecure-no-auth)",
                               opt->bind));
     if (opt->tls_cert.empty() != opt->tls_key.empty()) usage_error("--tls-cert and --tls-key go together");
+    if (!opt->costs.empty() && opt->queries.empty()) usage_error("--cost needs --queries (the classes it gives costs to)");
   });
   auto io = std::make_shared<IoOptions>(cmd);
   io->input("map", opt->map);

@@ -21,28 +21,20 @@
 
 #include <absl/container/flat_hash_map.h>
 #include "slamvdb/ontology/ontology.hpp"
+#include "slamvdb/query/class_summary.hpp"
 #include "slamvdb/query/map_query.hpp"
 
 namespace slamvdb::cli {
-
-// The class name written for a cell: empty without a class, `uncertain` below min_confidence.
-inline std::string_view class_label(const ClassifiedCell& c, const QuerySet& queries, float min_confidence) {
-  if (c.match.class_index == kNoClass) return {};
-  return is_uncertain(c, min_confidence) ? std::string_view("uncertain")
-                                         : std::string_view(queries.names[c.match.class_index]);
-}
 
 // One row per semantic voxel of the index (cell centre in the world frame):
 // x,y,z,class,score,margin,count,confidence; the class is `uncertain` below min_confidence (score
 // and margin stay the best class's). `cells` in the order to write (sort_by_cell for a stable file).
 inline void write_classified_csv(const std::filesystem::path& path, const std::vector<ClassifiedCell>& cells,
                                  const QuerySet& queries, float min_confidence = 0.f) {
-  CsvWriter csv({"x", "y", "z", "class", "score", "margin", "count", "confidence"});
+  CsvWriter csv({"x", "y", "z", "class", "score", "margin", "count", "confidence"});  // classified_columns()
   for (const ClassifiedCell& c : cells) {
-    const Vec3d& p = c.position_world;
-    csv.row({fmt::format("{:.3f}", p.x()), fmt::format("{:.3f}", p.y()), fmt::format("{:.3f}", p.z()),
-             class_label(c, queries, min_confidence), fmt::format("{:.6f}", c.match.score),
-             fmt::format("{:.6f}", c.match.margin), fmt::format("{}", c.count), fmt::format("{:.4f}", c.confidence)});
+    const std::vector<std::string> r = classified_row(c, queries, min_confidence);
+    csv.row({r[0], r[1], r[2], r[3], r[4], r[5], r[6], r[7]});
   }
   write_output_file(path, csv.text());
 }
@@ -73,13 +65,6 @@ std::vector<ColouredVoxel> coloured_map(const SemanticMap& map, const std::vecto
   return voxels;
 }
 
-inline std::vector<Rgb> class_colours(const QuerySet& queries) {
-  std::vector<Rgb> colours;
-  for (int k = 0; k < queries.size(); ++k)
-    colours.push_back(queries.colours.empty() ? score_colour(queries.size() > 1 ? k / (queries.size() - 1.0f) : 0.f)
-                                              : queries.colours[k]);
-  return colours;
-}
 
 // The terrain seen from above (the ground voxel of every column, coloured by class) with a legend,
 // scale bar, north arrow and the driven path; PNG + map_server YAML. `cells` sorted by cell.
@@ -87,12 +72,19 @@ inline BirdsEyeImage write_class_picture(const std::filesystem::path& png, const
                                          const std::vector<ClassifiedCell>& cells, const QuerySet& queries,
                                          const std::vector<Eigen::Vector2d>& path,
                                          const std::string& path_label = "path (submap anchors)",
-                                         float min_confidence = 0.f) {
+                                         float min_confidence = 0.f,
+                                         const std::optional<QueryRegion>& region = std::nullopt) {
   const std::vector<Rgb> colours = class_colours(queries);
-  const auto voxels = coloured_map(map, cells, [&](std::size_t j) {
+  // With a region (classify --bbox / --near): only the voxels whose centre is in it are drawn.
+  const auto in_region = [&](std::vector<ColouredVoxel> voxels) {
+    if (region) std::erase_if(voxels, [&](const ColouredVoxel& v) { return !region->contains(v.position.cast<double>()); });
+    if (voxels.empty()) throw Error("the region holds no occupied voxels to draw");
+    return voxels;
+  };
+  const auto voxels = in_region(coloured_map(map, cells, [&](std::size_t j) {
     const int k = cells[j].match.class_index;
     return k == kNoClass ? Rgb{255, 255, 255} : colours[static_cast<std::size_t>(k)];
-  });
+  }));
   BirdsEyeParams params;
   params.layer = BirdsEyeParams::Layer::kGround;
   BirdsEyeImage image = render_birds_eye(voxels, map.params().occupancy.voxel_size, params);
@@ -102,9 +94,9 @@ inline BirdsEyeImage write_class_picture(const std::filesystem::path& png, const
   notes.legend.emplace_back("no semantics (dark grey by height)", Rgb{90, 90, 90});
   if (std::any_of(cells.begin(), cells.end(), [&](const ClassifiedCell& c) { return is_uncertain(c, min_confidence); })) {
     // The same voxels rendered the same way, uncertain ones white: the pixels to hatch.
-    const auto marked = coloured_map(map, cells, [&](std::size_t j) {
+    const auto marked = in_region(coloured_map(map, cells, [&](std::size_t j) {
       return is_uncertain(cells[j], min_confidence) ? Rgb{255, 255, 255} : Rgb{0, 0, 0};
-    });
+    }));
     const BirdsEyeImage mask = render_birds_eye(marked, map.params().occupancy.voxel_size, params);
     cv::Mat hatched;
     cv::inRange(mask.rgb, cv::Scalar(255, 255, 255), cv::Scalar(255, 255, 255), hatched);

@@ -196,12 +196,14 @@ class ConfigEquivalence : public ::testing::Test {
       for (Sample& s : samples) s.companions = {"--simulated"};
     if (cmd == "synth" && (name == "--compression" || name == "--chunk-size"))
       for (Sample& s : samples) s.companions = {"--format=mcap"};
-    if (cmd == "query" && (name == "--near" || name == "--radius"))  // the two go together
+    if ((cmd == "query" || cmd == "classify") && (name == "--near" || name == "--radius"))  // the two go together
       for (Sample& s : samples) s.companions = {name == "--near" ? "--radius=2" : "--near=1,2"};
     if (cmd == "serve" && (name == "--tls-cert" || name == "--tls-key"))  // the two go together
       for (Sample& s : samples) s.companions = {(name == "--tls-cert" ? "--tls-key=" : "--tls-cert=") + file.string()};
     if (o->get_expected_max() > 1 && !samples.empty())  // a repeatable option: two values at once
       samples.push_back({{samples.front().values.front(), samples.back().values.front()}, {}});
+    if (cmd == "serve" && name == "--cost")  // costs of the query set's classes
+      for (Sample& s : samples) s.companions = {"--queries=" + file.string()};
     return samples;
   }
 

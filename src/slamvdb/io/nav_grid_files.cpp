@@ -3,6 +3,8 @@
 #include <fmt/format.h>
 
 #include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
 
 #include "slamvdb/core/error.hpp"
 #include "slamvdb/core/output_file.hpp"
@@ -13,11 +15,43 @@ NavGridFiles nav_grid_files(const std::filesystem::path& prefix) {
   return {prefix.string() + ".pgm", prefix.string() + ".yaml", prefix.string() + ".png"};
 }
 
+namespace {
+
+// An 8-bit image (RGB or grey) encoded as `extension` (".png", ".pgm").
+std::string encoded_image(const cv::Mat& image, const char* extension) {
+  cv::Mat out = image;
+  if (image.channels() == 3) cv::cvtColor(image, out, cv::COLOR_RGB2BGR);
+  std::vector<uint8_t> bytes;
+  if (!cv::imencode(extension, out, bytes)) throw Error(fmt::format("cannot encode the navigation grid as {}", extension));
+  return {reinterpret_cast<const char*>(bytes.data()), bytes.size()};
+}
+
+}  // namespace
+
+std::vector<Rgb> class_colours(const QuerySet& queries) {
+  std::vector<Rgb> colours;
+  for (int k = 0; k < queries.size(); ++k)
+    colours.push_back(queries.colours.empty() ? score_colour(queries.size() > 1 ? k / (queries.size() - 1.0f) : 0.f)
+                                              : queries.colours[k]);
+  return colours;
+}
+
 NavGridFiles write_nav_grid(const std::filesystem::path& prefix, const NavGrid& grid,
                             const std::vector<std::string>& class_names, const std::vector<Rgb>& class_colours,
                             const std::vector<Eigen::Vector2d>& trajectory, float min_confidence) {
-  if (grid.width <= 0 || grid.height <= 0) throw Error("the navigation grid is empty");
   const NavGridFiles files = nav_grid_files(prefix);
+  const NavGridBytes bytes =
+      encode_nav_grid(grid, files.pgm.filename().string(), class_names, class_colours, trajectory, min_confidence);
+  write_output_file(files.pgm, bytes.pgm);
+  write_output_file(files.yaml, bytes.yaml);
+  write_output_file(files.png, bytes.png);
+  return files;
+}
+
+NavGridBytes encode_nav_grid(const NavGrid& grid, const std::string& pgm_name,
+                             const std::vector<std::string>& class_names, const std::vector<Rgb>& class_colours,
+                             const std::vector<Eigen::Vector2d>& trajectory, float min_confidence) {
+  if (grid.width <= 0 || grid.height <= 0) throw Error("the navigation grid is empty");
   // Image rows run north to south; grid rows south to north.
   cv::Mat pgm(grid.height, grid.width, CV_8UC1);
   BirdsEyeImage picture;
@@ -45,8 +79,9 @@ NavGridFiles write_nav_grid(const std::filesystem::path& prefix, const NavGrid& 
       }
       picture.rgb.at<cv::Vec3b>(image_row, col) = {c[0], c[1], c[2]};
     }
-  write_image_atomically(files.pgm, pgm);
-  write_output_file(files.yaml, map_server_yaml(files.pgm.filename().string(), grid.resolution, grid.origin, "raw"));
+  NavGridBytes out;
+  out.pgm = encoded_image(pgm, ".pgm");
+  out.yaml = map_server_yaml(pgm_name, grid.resolution, grid.origin, "raw");
 
   PictureAnnotations notes;
   notes.title = "navigation grid";
@@ -60,8 +95,8 @@ NavGridFiles write_nav_grid(const std::filesystem::path& prefix, const NavGrid& 
   if (trajectory.size() >= 2) notes.legend.emplace_back("path (submap anchors)", Rgb{255, 60, 60});
   notes.trajectory = trajectory;
   annotate(picture, notes);
-  write_image_atomically(files.png, picture.rgb);
-  return files;
+  out.png = encoded_image(picture.rgb, ".png");
+  return out;
 }
 
 }  // namespace slamvdb

@@ -18,6 +18,14 @@ namespace {
 
 constexpr std::size_t kGrain = 2048;  // cells per task: big enough to amortise, small enough to balance
 
+// The index positions of the cells whose centre lies in `region`, read from the submaps whose
+// world bounds meet it (GlobalIndex::cells_in_box).
+std::vector<std::size_t> cells_of_region(const GlobalIndex& index, const QueryRegion& region) {
+  std::vector<std::size_t> inside = index.cells_in_box(region.bounds());
+  std::erase_if(inside, [&](std::size_t i) { return !region.contains(center_of_key(index.key(i), index.cell_size())); });
+  return inside;
+}
+
 bool better(const ScoredCell& a, const ScoredCell& b) {
   if (a.score != b.score) return a.score > b.score;
   return a.cell < b.cell;
@@ -71,12 +79,7 @@ std::vector<ScoredCell> similarity_search(const SemanticMap& map, std::span<cons
   map.read_index([&](const GlobalIndex& index) {
     // With a region, the cells in it (read from the submaps whose bounds meet it), else all.
     std::vector<std::size_t> candidates;
-    if (options.region) {
-      candidates = index.cells_in_box(options.region->bounds());
-      std::erase_if(candidates, [&](std::size_t i) {
-        return !options.region->contains(center_of_key(index.key(i), index.cell_size()));
-      });
-    }
+    if (options.region) candidates = cells_of_region(index, *options.region);
     const std::size_t n = options.region ? candidates.size() : index.size();
     struct Local {
       TopK best;
@@ -123,45 +126,77 @@ void classify_results(const SemanticMap& map, const QuerySet& queries, std::span
   });
 }
 
+namespace {
+
+// The cells `positions` of the index classified (all of them when null), in that order: each cell
+// read and classified the same way whichever list it is in, so a region's rows equal the whole
+// map's rows of the same cells.
+std::vector<ClassifiedCell> classify_index_cells(const GlobalIndex& index, const QueryClassifier& classifier,
+                                                 std::size_t dim, const std::vector<std::size_t>* positions) {
+  const std::size_t total = positions ? positions->size() : index.size();
+  std::vector<ClassifiedCell> out(total);
+  constexpr std::size_t kBatch = 256;
+  struct Local {
+    std::vector<float> means;  // one row per cell of the batch with more than two entries
+    std::vector<CombinedView> rows;
+    std::vector<QueryMatch> matches;
+  };
+  tbb::enumerable_thread_specific<Local> locals([&] {
+    return Local{std::vector<float>(kBatch * dim), std::vector<CombinedView>(kBatch), std::vector<QueryMatch>(kBatch)};
+  });
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, total, kBatch), [&](const auto& range) {
+    Local& local = locals.local();
+    for (std::size_t begin = range.begin(); begin < range.end(); begin += kBatch) {
+      const std::size_t n = std::min(kBatch, range.end() - begin);
+      // Entries are read where the submaps store them (fp16); a cell shared by two submaps is
+      // combined in registers, only cells of three or more get their mean written out.
+      for (std::size_t j = 0; j < n; ++j) {
+        const std::size_t at = positions ? (*positions)[begin + j] : begin + j;
+        const GlobalIndex::Parts v = index.parts(at, local.means.data() + j * dim);
+        local.rows[j] = v.embedding;
+        const IndexCellKey& cell = index.key(at);
+        out[begin + j] = {cell, center_of_key(cell, index.cell_size()), v.count, {}, v.stats};
+      }
+      classifier.classify_combined(local.rows.data(), n, local.matches.data());
+      for (std::size_t j = 0; j < n; ++j) {
+        ClassifiedCell& c = out[begin + j];
+        c.match = local.matches[j];
+        c.confidence = voxel_confidence(c.match, c.count, c.stats);
+      }
+    }
+  });
+  return out;
+}
+
+}  // namespace
+
 std::vector<ClassifiedCell> classify_map(const SemanticMap& map, const QuerySet& queries,
                                          const ClassifyOptions& options, ModelIdCheck model_check) {
   check_compatible(queries, map.params().semantic.dim, map.info().model_id, model_check);
   const QueryClassifier classifier(queries, options);
-  const auto dim = static_cast<std::size_t>(map.params().semantic.dim);
   std::vector<ClassifiedCell> out;
   map.read_index([&](const GlobalIndex& index) {
-    out.resize(index.size());
-    constexpr std::size_t kBatch = 256;
-    struct Local {
-      std::vector<float> means;  // one row per cell of the batch with more than two entries
-      std::vector<CombinedView> rows;
-      std::vector<QueryMatch> matches;
-    };
-    tbb::enumerable_thread_specific<Local> locals([&] {
-      return Local{std::vector<float>(kBatch * dim), std::vector<CombinedView>(kBatch), std::vector<QueryMatch>(kBatch)};
-    });
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, index.size(), kBatch), [&](const auto& range) {
-      Local& local = locals.local();
-      for (std::size_t begin = range.begin(); begin < range.end(); begin += kBatch) {
-        const std::size_t n = std::min(kBatch, range.end() - begin);
-        // Entries are read where the submaps store them (fp16); a cell shared by two submaps is
-        // combined in registers, only cells of three or more get their mean written out.
-        for (std::size_t j = 0; j < n; ++j) {
-          const GlobalIndex::Parts v = index.parts(begin + j, local.means.data() + j * dim);
-          local.rows[j] = v.embedding;
-          const IndexCellKey& cell = index.key(begin + j);
-          out[begin + j] = {cell, center_of_key(cell, index.cell_size()), v.count, {}, v.stats};
-        }
-        classifier.classify_combined(local.rows.data(), n, local.matches.data());
-        for (std::size_t j = 0; j < n; ++j) {
-          ClassifiedCell& c = out[begin + j];
-          c.match = local.matches[j];
-          c.confidence = voxel_confidence(c.match, c.count, c.stats);
-        }
-      }
-    });
+    out = classify_index_cells(index, classifier, static_cast<std::size_t>(map.params().semantic.dim), nullptr);
   });
   return out;
+}
+
+std::vector<ClassifiedCell> classify_region(const SemanticMap& map, const QuerySet& queries, const QueryRegion& region,
+                                            const ClassifyOptions& options, ModelIdCheck model_check) {
+  check_compatible(queries, map.params().semantic.dim, map.info().model_id, model_check);
+  const QueryClassifier classifier(queries, options);
+  std::vector<ClassifiedCell> out;
+  map.read_index([&](const GlobalIndex& index) {
+    const std::vector<std::size_t> inside = cells_of_region(index, region);  // as similarity_search finds them
+    out = classify_index_cells(index, classifier, static_cast<std::size_t>(map.params().semantic.dim), &inside);
+  });
+  return out;
+}
+
+std::size_t count_region_cells(const SemanticMap& map, const QueryRegion& region) {
+  std::size_t n = 0;
+  map.read_index([&](const GlobalIndex& index) { n = cells_of_region(index, region).size(); });
+  return n;
 }
 
 void sort_by_cell(std::vector<ClassifiedCell>& cells) {

@@ -72,6 +72,17 @@ std::vector<ClassifiedCell> classify_map(const SemanticMap& map, const QuerySet&
                                          const ClassifyOptions& options = {},
                                          ModelIdCheck model_check = ModelIdCheck::kRequireMatch);
 
+// classify_map limited to the cells whose centre lies in `region` (classify --bbox / --near, GET
+// /api/classes): the same rows as classify_map's for those cells; submaps whose world bounds miss
+// the region are not read. Any order (sort_by_cell for outputs).
+std::vector<ClassifiedCell> classify_region(const SemanticMap& map, const QuerySet& queries, const QueryRegion& region,
+                                            const ClassifyOptions& options = {},
+                                            ModelIdCheck model_check = ModelIdCheck::kRequireMatch);
+
+// How many semantic cells classify_region would answer for `region` (the same cells, nothing
+// classified): lets a caller refuse a region too large to answer before doing the work.
+std::size_t count_region_cells(const SemanticMap& map, const QueryRegion& region);
+
 // Cell-key order: the same map always gives the same list, whatever the history of its index.
 void sort_by_cell(std::vector<ClassifiedCell>& cells);
 

@@ -12,6 +12,7 @@
 #include <thread>
 
 #include "slamvdb/server/httplib_include.hpp"
+#include "slamvdb/server/nav_grid_answer.hpp"
 #include "slamvdb/server/server_metrics.hpp"
 
 namespace slamvdb {
@@ -62,6 +63,28 @@ httplib::Server::Handler guarded(ServerMetrics& metrics, std::string route, std:
     metrics.record(route, res.status, std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
   };
 }
+
+// The query-string parameters of a GET route: any name the route does not take is refused (a typo
+// must not pass as a default), 400 naming it.
+class GetParams {
+ public:
+  GetParams(const httplib::Request& req, const std::string& route, std::initializer_list<std::string_view> known)
+      : req_(req) {
+    for (const auto& [name, value] : req.params)
+      if (std::find(known.begin(), known.end(), name) == known.end()) {
+        std::string names;
+        for (const std::string_view k : known) names += (names.empty() ? "" : ", ") + std::string(k);
+        throw RequestError(400, name, fmt::format("unknown parameter '{}' ({} takes {})", name, route, names));
+      }
+  }
+  std::optional<std::string> get(const char* name) const {
+    return req_.has_param(name) ? std::optional<std::string>(req_.get_param_value(name)) : std::nullopt;
+  }
+  RegionParams region() const { return {get("bbox"), get("near"), get("radius")}; }
+
+ private:
+  const httplib::Request& req_;
+};
 
 // "Authorization: Bearer TOKEN" against the token, in time independent of where they differ.
 bool has_token(const httplib::Request& req, const std::string& token) {
@@ -132,6 +155,23 @@ void MapServer::Impl::add_routes() {
       {"/api/at", "POST", limit,
        [this](const httplib::Request& req, httplib::Response& res) {
          send_json(res, 200, answer_at(context, decode_at_request(req.body, options.limits)));
+       }},
+      {"/api/classes", "GET", limit,
+       [this](const httplib::Request& req, httplib::Response& res) {
+         const GetParams params(req, "GET /api/classes", {"bbox", "near", "radius", "min_confidence"});
+         const ClassesRequest request = decode_classes_request(params.region(), params.get("min_confidence"));
+         send_json(res, 200, answer_classes(context, request, options.limits.max_cells));
+       }},
+      {"/api/nav-grid", "GET", limit,
+       [this](const httplib::Request& req, httplib::Response& res) {
+         const GetParams params(req, "GET /api/nav-grid",
+                                {"bbox", "near", "radius", "resolution", "format", "robot_height", "min_confidence"});
+         const NavGridRequest request = decode_nav_grid_request({params.region(), params.get("resolution"),
+                                                                 params.get("format"), params.get("robot_height"),
+                                                                 params.get("min_confidence")});
+         NavGridAnswer answer = answer_nav_grid(context, request, options.limits.max_cells);
+         res.status = 200;
+         res.set_content(std::move(answer.body), answer.content_type);
        }},
       {"/api/query", "POST", limit,
        [this](const httplib::Request& req, httplib::Response& res) {
@@ -210,6 +250,7 @@ MapServer::MapServer(std::shared_ptr<const MapService> map, std::unique_ptr<Text
   c.text = impl_->text.get();
   c.queries = impl_->queries ? &*impl_->queries : nullptr;
   c.queries_name = o.queries_name;
+  c.nav_costs = o.nav_costs;
   c.classify = o.classify;
   c.model_check = o.model_check;
   impl_->add_routes();

@@ -17,6 +17,7 @@ struct ServerOptions {
   ClassifyOptions classify{};
   ModelIdCheck model_check = ModelIdCheck::kRequireMatch;
   std::string queries_name = "the server's query set";
+  std::vector<std::string> nav_costs;  // CLASS=COST of the navigation grid (classify --cost's rules)
   // A bearer token every route but /healthz requires ("Authorization: Bearer TOKEN"), compared in
   // constant time; empty: none (the command allows that on loopback or with --insecure-no-auth).
   std::string token;

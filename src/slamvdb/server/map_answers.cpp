@@ -4,6 +4,8 @@
 
 #include <cmath>
 
+#include "slamvdb/query/class_summary.hpp"
+
 namespace slamvdb {
 
 nlohmann::json encoder_json(const AnswerContext& context) {
@@ -131,6 +133,52 @@ nlohmann::json answer_at(const AnswerContext& context, const AtRequest& request)
   }
   return {{"encoder", encoder_json(context)}, {"count", answers.size()}, {"found", found}, {"results", std::move(rows)}};
 }
+
+nlohmann::json answer_classes(const AnswerContext& context, const ClassesRequest& request, std::size_t max_cells) {
+  if (!context.queries)
+    throw RequestError(400, "", "GET /api/classes needs a query set: this server was started without --queries");
+  // Refused before classifying: a city-sized region must cost a count, not a classification.
+  if (const std::size_t n = context.map->region_cells(request.region); n > max_cells)
+    throw RequestError(413, request.region.box ? "bbox" : "radius",
+                       fmt::format("the region holds {} semantic cells; GET /api/classes answers at most {} (the "
+                                   "server's --max-cells): split the region into smaller boxes",
+                                   n, max_cells));
+  const QuerySet& queries = *context.queries;
+  std::vector<ClassifiedCell> cells;
+  try {
+    cells = context.map->classes(queries, request.region, context.classify, context.model_check);
+  } catch (const RequestError&) {
+    throw;
+  } catch (const Error& e) {
+    throw RequestError(400, "", e.what());  // the query set does not fit the map (its checks' message)
+  }
+  const ClassSummary summary = summarize_classes(cells, queries, request.min_confidence);
+  nlohmann::json classes = nlohmann::json::array();
+  for (std::size_t k = 0; k < summary.per_class.size(); ++k)
+    classes.push_back({{"name", queries.names[k]}, {"voxels", summary.per_class[k]}, {"share", summary.percent(summary.per_class[k]) / 100.0}});
+  nlohmann::json rows = nlohmann::json::array();
+  for (const ClassifiedCell& c : cells) {
+    const std::string_view label = class_label(c, queries, request.min_confidence);
+    rows.push_back({{"position", {c.position_world.x(), c.position_world.y(), c.position_world.z()}},
+                    {"class", label.empty() ? nlohmann::json() : nlohmann::json(std::string(label))},
+                    {"score", c.match.score},
+                    {"margin", c.match.margin},
+                    {"count", c.count},
+                    {"confidence", c.confidence}});
+  }
+  return {{"encoder", encoder_json(context)},
+          {"queries", context.queries_name},
+          {"region", map_answers_detail::region_json(request.region)},
+          {"min_confidence", request.min_confidence},
+          {"count", cells.size()},
+          {"classes", std::move(classes)},
+          {"uncertain", summary.uncertain},
+          {"unclassified", summary.unclassified},
+          {"statistics_unknown", summary.statistics_unknown},
+          {"results", std::move(rows)}};
+}
+
+nlohmann::json region_json(const std::optional<QueryRegion>& region) { return map_answers_detail::region_json(region); }
 
 nlohmann::json answer_submaps(const AnswerContext& context) {
   return {{"encoder", encoder_json(context)}, {"submaps", context.map->info().at("submaps")}};

@@ -22,7 +22,11 @@ struct AnswerContext {
   std::string queries_name = "the server's query set";
   ClassifyOptions classify{};
   ModelIdCheck model_check = ModelIdCheck::kRequireMatch;
+  std::vector<std::string> nav_costs;  // CLASS=COST overrides of the navigation grid (serve --cost)
 };
+
+// The region an answer was limited to, as the request gives it (null: the whole map).
+nlohmann::json region_json(const std::optional<QueryRegion>& region);
 
 // {"model_id", "simulated"} of the text encoder, null without one: part of every answer.
 nlohmann::json encoder_json(const AnswerContext& context);
@@ -35,6 +39,13 @@ nlohmann::json answer_query(const AnswerContext& context, const QueryRequest& re
 // POST /api/at: what the map holds at each point, the rows `query --at -o X.csv` writes (and the
 // cell's mean embedding when asked).
 nlohmann::json answer_at(const AnswerContext& context, const AtRequest& request);
+
+// GET /api/classes: the cells in the request's box classified against the server's query set, in
+// cell order, each with the fields of `classify --bbox -o X.csv` (class_label, classified_row's
+// numbers), and the summary `classify` prints (summarize_classes). Without a query set: 400; a
+// region holding more than `max_cells` cells: 413 naming the count and the limit (counted before
+// anything is classified).
+nlohmann::json answer_classes(const AnswerContext& context, const ClassesRequest& request, std::size_t max_cells);
 
 // GET /api/submaps: id, anchor, time range and counts of every submap (/api/info's "submaps").
 nlohmann::json answer_submaps(const AnswerContext& context);

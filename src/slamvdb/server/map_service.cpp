@@ -26,6 +26,27 @@ std::vector<PointQuery> SemanticMapService::at(std::span<const Vec3d> points_wor
   return query_points(*map_, points_world, queries, options, model_check);
 }
 
+std::vector<ClassifiedCell> SemanticMapService::classes(const QuerySet& queries, const QueryRegion& region,
+                                                        const ClassifyOptions& options, ModelIdCheck model_check) const {
+  std::vector<ClassifiedCell> cells = classify_region(*map_, queries, region, options, model_check);
+  sort_by_cell(cells);
+  return cells;
+}
+
+std::size_t SemanticMapService::region_cells(const QueryRegion& region) const {
+  return count_region_cells(*map_, region);
+}
+
+MapService::RegionGrid SemanticMapService::nav_grid(const QuerySet& queries, const NavGridOptions& options,
+                                                    const ClassifyOptions& classify, ModelIdCheck model_check) const {
+  if (!options.region) throw Error("SemanticMapService::nav_grid needs a region");
+  std::vector<ClassifiedCell> cells = classify_region(*map_, queries, *options.region, classify, model_check);
+  sort_by_cell(cells);  // as classify sorts them before building its grid
+  return {build_nav_grid(*map_, cells, options), submap_path(*map_)};
+}
+
+double SemanticMapService::grid_resolution() const { return map_->params().index_cell(); }
+
 std::shared_ptr<SemanticMapService> open_map_file_service(const std::filesystem::path& path) {
   const MapFileSummary summary = read_map_summary(path);
   auto map = std::make_shared<const SemanticMap>(load_map(path));

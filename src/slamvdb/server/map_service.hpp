@@ -11,6 +11,7 @@
 
 #include "slamvdb/map/semantic_map.hpp"
 #include "slamvdb/query/map_query.hpp"
+#include "slamvdb/query/nav_grid.hpp"
 #include "slamvdb/query/query_terms.hpp"
 
 namespace slamvdb {
@@ -32,6 +33,21 @@ class MapService {
   // classify_results over the map, for answers that carry a class (a query set given to the server).
   virtual void classify(const QuerySet& queries, std::span<ScoredCell> results, const ClassifyOptions& options,
                         ModelIdCheck model_check) const = 0;
+  // classify_region over the map in cell order (what `classify --bbox -o X.csv` writes).
+  virtual std::vector<ClassifiedCell> classes(const QuerySet& queries, const QueryRegion& region,
+                                              const ClassifyOptions& options, ModelIdCheck model_check) const = 0;
+  // How many cells classes() would answer for `region` (count_region_cells): checked against a limit first.
+  virtual std::size_t region_cells(const QueryRegion& region) const = 0;
+  // The navigation grid of options.region (required) as `classify --bbox ... --grid` builds it
+  // (classify_region + build_nav_grid), and the path driven (submap_path) for its picture.
+  struct RegionGrid {
+    NavGrid grid;
+    std::vector<Eigen::Vector2d> path;
+  };
+  virtual RegionGrid nav_grid(const QuerySet& queries, const NavGridOptions& options, const ClassifyOptions& classify,
+                              ModelIdCheck model_check) const = 0;
+  // Metres per cell of the map's navigation grid (its index cell).
+  virtual double grid_resolution() const = 0;
 };
 
 // A SemanticMap in memory, read through its global index (SemanticMap's own locks make concurrent
@@ -47,6 +63,12 @@ class SemanticMapService final : public MapService {
                 ModelIdCheck model_check) const override;
   std::vector<PointQuery> at(std::span<const Vec3d> points_world, const QuerySet* queries,
                              const ClassifyOptions& options, ModelIdCheck model_check) const override;
+  std::vector<ClassifiedCell> classes(const QuerySet& queries, const QueryRegion& region,
+                                      const ClassifyOptions& options, ModelIdCheck model_check) const override;
+  std::size_t region_cells(const QueryRegion& region) const override;
+  RegionGrid nav_grid(const QuerySet& queries, const NavGridOptions& options, const ClassifyOptions& classify,
+                      ModelIdCheck model_check) const override;
+  double grid_resolution() const override;
 
  private:
   std::shared_ptr<const SemanticMap> map_;

@@ -1,5 +1,7 @@
 #include "slamvdb/server/request_decoding.hpp"
 
+#include "slamvdb/core/point_text.hpp"
+
 #include <fmt/format.h>
 
 #include <cmath>
@@ -172,6 +174,82 @@ AtRequest decode_at_request(std::string_view body, const ServerLimits& limits) {
   if (j.contains("embedding")) {
     if (!j["embedding"].is_boolean()) throw RequestError(400, "embedding", "'embedding' is true or false");
     r.embedding = j["embedding"].get<bool>();
+  }
+  return r;
+}
+
+QueryRegion decode_region_params(const RegionParams& params, const std::string& route) {
+  if (!params.bbox && !params.near && !params.radius)  // a radius alone: make_region names near
+    throw RequestError(400, "bbox", fmt::format("{} needs ?bbox=xmin,ymin,zmin,xmax,ymax,zmax or ?near=x,y[,z]&radius=r "
+                                                "(world metres)", route));
+  std::optional<std::vector<double>> box, near;
+  std::optional<double> radius;
+  try {
+    if (params.bbox) box = parse_numbers(*params.bbox, "bbox", 6, 6, "xmin,ymin,zmin,xmax,ymax,zmax");
+  } catch (const Error& e) {
+    throw RequestError(400, "bbox", e.what());
+  }
+  try {
+    if (params.near) near = parse_numbers(*params.near, "near", 2, 3, "x,y or x,y,z");
+  } catch (const Error& e) {
+    throw RequestError(400, "near", e.what());
+  }
+  try {
+    if (params.radius) radius = parse_numbers(*params.radius, "radius", 1, 1, "metres > 0")[0];
+  } catch (const Error& e) {
+    throw RequestError(400, "radius", e.what());
+  }
+  try {
+    return make_region(box ? std::optional<std::span<const double>>(*box) : std::nullopt,
+                       near ? std::optional<std::span<const double>>(*near) : std::nullopt, radius);
+  } catch (const RegionError& e) {
+    throw RequestError(400, e.field(), e.what());
+  }
+}
+
+float decode_confidence_param(const std::string& text, const std::string& field) {
+  std::vector<double> c;
+  try {
+    c = parse_numbers(text, field, 1, 1, "a number 0..1");
+  } catch (const Error& e) {
+    throw RequestError(400, field, e.what());
+  }
+  if (!(c[0] >= 0 && c[0] <= 1)) throw RequestError(400, field, fmt::format("{} {} is not in 0..1", field, c[0]));
+  return static_cast<float>(c[0]);
+}
+
+ClassesRequest decode_classes_request(const RegionParams& region, const std::optional<std::string>& min_confidence) {
+  ClassesRequest r;
+  r.region = decode_region_params(region, "GET /api/classes");
+  if (min_confidence) r.min_confidence = decode_confidence_param(*min_confidence, "min_confidence");
+  return r;
+}
+
+NavGridRequest decode_nav_grid_request(const NavGridParams& params) {
+  NavGridRequest r;
+  r.region = decode_region_params(params.region, "GET /api/nav-grid");
+  // One finite number in [lo, hi] (lo excluded when `open_low`), 400 naming `field` otherwise.
+  const auto number = [](const std::string& text, const char* field, double lo, double hi, bool open_low) {
+    std::vector<double> v;
+    try {
+      v = parse_numbers(text, field, 1, 1, "a number");
+    } catch (const Error& e) {
+      throw RequestError(400, field, e.what());
+    }
+    if (!(open_low ? v[0] > lo : v[0] >= lo) || !(v[0] <= hi))
+      throw RequestError(400, field, fmt::format("{} {} is not in {}{}..{}", field, v[0], open_low ? "(" : "", lo, hi));
+    return v[0];
+  };
+  if (params.resolution) r.resolution = number(*params.resolution, "resolution", 0, 1e6, true);
+  if (params.robot_height) r.robot_height = number(*params.robot_height, "robot_height", 0.1, 100, false);
+  if (params.min_confidence) r.min_confidence = decode_confidence_param(*params.min_confidence, "min_confidence");
+  if (params.format) {
+    const std::string& f = *params.format;
+    if (f == "json") r.format = NavGridRequest::Format::kJson;
+    else if (f == "pgm") r.format = NavGridRequest::Format::kPgm;
+    else if (f == "png") r.format = NavGridRequest::Format::kPng;
+    else if (f == "yaml") r.format = NavGridRequest::Format::kYaml;
+    else throw RequestError(400, "format", fmt::format("format '{}': json, pgm, png or yaml", f));
   }
   return r;
 }

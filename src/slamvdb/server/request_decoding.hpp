@@ -5,6 +5,7 @@
 // status it carries); nothing here trusts a size, a depth or a number from the request.
 #include <cstddef>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <string>
 #include <string_view>
 
@@ -25,6 +26,9 @@ struct ServerLimits {
   // Requests answered at once; more are refused with 503 + Retry-After at once rather than queued
   // without bound (/healthz and /metrics are never refused, so monitoring sees a busy server).
   std::size_t max_concurrent = 32;
+  // Cells one GET /api/classes answers (about 120 bytes of JSON each: 200 000 is ~25 MB); a region
+  // holding more is refused with 413 naming the count and this limit (split the region instead).
+  std::size_t max_cells = 200000;
 };
 
 // A request the server refuses: HTTP status, the request field at fault ("" for the request as a
@@ -71,6 +75,50 @@ struct AtRequest {
 };
 
 AtRequest decode_at_request(std::string_view body, const ServerLimits& limits);
+
+// GET /api/classes?bbox=xmin,ymin,zmin,xmax,ymax,zmax | near=x,y[,z]&radius=r [&min_confidence=c]:
+// the region as `classify --bbox / --near --radius` takes it (query/query_region.hpp: a box, a
+// ball or vertical cylinder, or both; at least one) and the confidence below which a cell's class
+// is `uncertain` (0..1, default 0). Errors are 400 naming `bbox`, `near`, `radius` or
+// `min_confidence`.
+struct ClassesRequest {
+  QueryRegion region;
+  float min_confidence = 0.f;
+};
+
+// The parameters of a GET request by name (absent: nullopt), as the HTTP layer reads them.
+struct RegionParams {
+  std::optional<std::string> bbox, near, radius;
+};
+
+// The region of ?bbox= and/or ?near=&radius= (one of them required; `route` names the route in
+// the message of a request without either).
+QueryRegion decode_region_params(const RegionParams& params, const std::string& route);
+
+ClassesRequest decode_classes_request(const RegionParams& region, const std::optional<std::string>& min_confidence);
+
+// A confidence threshold parameter (0..1), 400 naming `field` otherwise.
+float decode_confidence_param(const std::string& text, const std::string& field);
+
+// GET /api/nav-grid?bbox=... | near=&radius= [&resolution=m] [&format=json|pgm|png|yaml]
+// [&robot_height=m] [&min_confidence=c]: the grid `classify --bbox ... --grid` builds for the
+// region. resolution, when given, must be a whole multiple of the map's cell (checked by the
+// answer: NavGridOptions::resolution); robot_height 0.1..100 (default 1.5, as classify's --robot-height).
+struct NavGridRequest {
+  enum class Format { kJson, kPgm, kPng, kYaml };
+  QueryRegion region;
+  std::optional<double> resolution;
+  Format format = Format::kJson;
+  double robot_height = 1.5;
+  float min_confidence = 0.f;
+};
+
+struct NavGridParams {
+  RegionParams region;
+  std::optional<std::string> resolution, format, robot_height, min_confidence;
+};
+
+NavGridRequest decode_nav_grid_request(const NavGridParams& params);
 
 // A JSON object from a request body, refusing non-JSON, nesting deeper than `max_depth` (before a
 // deep document is built) and anything but an object.

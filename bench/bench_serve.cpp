@@ -1,0 +1,152 @@
+// `slamvdb serve` on a million semantic voxels (bench_maps.hpp's road map, 1.06 M cells of 512-d
+// fp16, built in process): the answers of POST /api/query (top 100, JSON encoded) and POST /api/at
+// without HTTP, and a bounded load over loopback: a real MapServer on 127.0.0.1, N client threads,
+// a fixed count of requests each, every query a distinct vector (no cache can help), latencies
+// reported as p50 / p99 (counters, ms). Figures: docs/serve-design.md, "Measurements".
+#include <benchmark/benchmark.h>
+
+#include <algorithm>
+#include <chrono>
+#include <mutex>
+#include <thread>
+
+#include "bench_maps.hpp"
+#include "slamvdb/server/http_server.hpp"
+#include "slamvdb/server/httplib_include.hpp"
+
+namespace slamvdb::bench {
+namespace {
+
+const std::shared_ptr<const MapService>& serve_bench_service() {
+  static const std::shared_ptr<const MapService> service = std::make_shared<SemanticMapService>(
+      std::shared_ptr<const SemanticMap>(&indexed_map(), [](const SemanticMap*) {}),
+      nlohmann::json{{"submaps", nlohmann::json::array()}});
+  return service;
+}
+
+// Question i: near one submap's prototype (e[i % 13]) with a small twist of its own, so that no
+// two questions are the same vector.
+Eigen::VectorXf serve_bench_query(int i) {
+  Eigen::VectorXf q = Eigen::VectorXf::Zero(512);
+  q[i % kSubmaps] = 1.0f;
+  q[13 + i % 499] += 0.05f + 0.001f * static_cast<float>(i / 499);
+  return q;
+}
+
+QueryRequest serve_bench_request(int i) {
+  QueryRequest r;
+  r.terms.vectors = {serve_bench_query(i)};
+  r.search.top_k = 100;
+  return r;
+}
+
+// Points spread over the road (x along it, y across), a third of them off the surface.
+std::vector<Vec3d> serve_bench_points(std::size_t n) {
+  std::vector<Vec3d> points(n);
+  const double length = kSubmaps * 316 * 0.25 * 0.8 + 316 * 0.25 * 0.2, width = 316 * 0.25;
+  for (std::size_t i = 0; i < n; ++i)
+    points[i] = {length * static_cast<double>((i * 7919) % n) / static_cast<double>(n),
+                 width * static_cast<double>((i * 104729) % 997) / 997.0, (i % 3 == 0) ? 5.0 : 0.1};
+  return points;
+}
+
+void BM_ServeQueryAnswer(benchmark::State& state) {
+  AnswerContext context;
+  context.map = serve_bench_service().get();
+  int i = 0;
+  std::size_t bytes = 0;
+  for (auto _ : state) bytes = answer_query(context, serve_bench_request(i++)).dump().size();
+  state.counters["cells"] = static_cast<double>(context.map->semantic_cells());
+  state.counters["answer_bytes"] = static_cast<double>(bytes);
+}
+BENCHMARK(BM_ServeQueryAnswer)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+// Arg: points per request.
+void BM_ServeAtAnswer(benchmark::State& state) {
+  AnswerContext context;
+  context.map = serve_bench_service().get();
+  AtRequest request;
+  request.points = serve_bench_points(static_cast<std::size_t>(state.range(0)));
+  std::size_t found = 0;
+  for (auto _ : state) found = answer_at(context, request).at("found").get<std::size_t>();
+  state.counters["found"] = static_cast<double>(found);
+  state.counters["points_per_s"] =
+      benchmark::Counter(static_cast<double>(state.range(0)), benchmark::Counter::kIsIterationInvariantRate);
+}
+BENCHMARK(BM_ServeAtAnswer)->Arg(10000)->Arg(100000)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+// Args: clients, requests per client, route (0: POST /api/query top 100, distinct vectors; 1:
+// POST /api/at with 10 000 points). One iteration: the whole load, bounded in count.
+void BM_ServeLoad(benchmark::State& state) {
+  const int clients = static_cast<int>(state.range(0)), per_client = static_cast<int>(state.range(1));
+  const bool at = state.range(2) == 1;
+  ServerOptions options;
+  options.port = 0;
+  options.limits.max_concurrent = static_cast<std::size_t>(clients);
+  options.limits.max_body_bytes = 16 << 20;
+  options.model_check = ModelIdCheck::kIgnore;
+  MapServer server(serve_bench_service(), nullptr, std::nullopt, options);
+  const int port = server.bind();
+  std::thread serving([&server] { server.run(); });
+  // The bodies, made before the clock starts.
+  std::vector<std::string> bodies;
+  if (at) {
+    nlohmann::json points = nlohmann::json::array();
+    for (const Vec3d& p : serve_bench_points(10000)) points.push_back({p.x(), p.y(), p.z()});
+    bodies.push_back(nlohmann::json({{"points", points}}).dump());
+  } else {
+    for (int i = 0; i < clients * per_client; ++i) {
+      const Eigen::VectorXf q = serve_bench_query(i);
+      bodies.push_back(nlohmann::json({{"vector", std::vector<float>(q.data(), q.data() + q.size())}, {"top_k", 100}}).dump());
+    }
+  }
+  std::vector<double> latencies_ms;
+  std::size_t errors = 0;
+  double seconds = 0;
+  for (auto _ : state) {
+    latencies_ms.clear();
+    errors = 0;
+    std::mutex m;
+    const auto start = std::chrono::steady_clock::now();
+    std::vector<std::thread> threads;
+    for (int c = 0; c < clients; ++c)
+      threads.emplace_back([&, c] {
+        httplib::Client client("127.0.0.1", port);
+        client.set_read_timeout(120, 0);
+        for (int r = 0; r < per_client; ++r) {
+          const std::string& body = bodies[at ? 0 : static_cast<std::size_t>(c * per_client + r)];
+          const auto t0 = std::chrono::steady_clock::now();
+          const auto res = client.Post(at ? "/api/at" : "/api/query", body, "application/json");
+          const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+          const std::lock_guard lock(m);
+          latencies_ms.push_back(ms);
+          if (!res || res->status != 200) ++errors;
+        }
+      });
+    for (std::thread& t : threads) t.join();
+    seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  }
+  server.stop();
+  serving.join();
+  std::sort(latencies_ms.begin(), latencies_ms.end());
+  const auto quantile = [&](double q) {
+    return latencies_ms.empty() ? 0.0 : latencies_ms[std::min(latencies_ms.size() - 1, static_cast<std::size_t>(q * latencies_ms.size()))];
+  };
+  state.counters["requests"] = static_cast<double>(latencies_ms.size());
+  state.counters["errors"] = static_cast<double>(errors);
+  state.counters["p50_ms"] = quantile(0.50);
+  state.counters["p99_ms"] = quantile(0.99);
+  state.counters["max_ms"] = latencies_ms.empty() ? 0.0 : latencies_ms.back();
+  state.counters["requests_per_s"] = static_cast<double>(latencies_ms.size()) / seconds;
+  if (at) state.counters["points_per_s"] = 10000.0 * static_cast<double>(latencies_ms.size()) / seconds;
+}
+BENCHMARK(BM_ServeLoad)
+    ->Args({1, 16, 0})
+    ->Args({32, 4, 0})
+    ->Args({8, 4, 1})
+    ->Iterations(1)
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
+
+}  // namespace
+}  // namespace slamvdb::bench

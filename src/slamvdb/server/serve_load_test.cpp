@@ -1,0 +1,71 @@
+// A bounded load on a served map: many client threads over loopback, a fixed count of requests
+// each, mixing the routes (query by class, at, classes, nav-grid), more clients than
+// --max-concurrent. Every answer is a 200 or the documented 503 (with Retry-After), never another
+// status or a dropped connection; the server answers /healthz afterwards and stops cleanly.
+// Latency p50/p99 is printed (bench/bench_serve.cpp measures it on a million cells).
+#include <fmt/format.h>
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <chrono>
+#include <mutex>
+#include <thread>
+
+#include "slamvdb/testing/served_map.hpp"
+
+namespace slamvdb {
+namespace {
+
+TEST(ServeLoad, ManyClientsGetAnswersOr503AndNothingElse) {
+  testing::TwoClassMap f;
+  testing::ServerProcess server(SLAMVDB_CLI_PATH,
+                                {"serve", f.map.string(), "--port", "0", "--queries", f.queries.string(),
+                                 "--ignore-model-id", "--max-concurrent", "4"},
+                                (f.tmp.path / "serve.log").string());
+  ASSERT_GT(server.port(), 0) << server.output();
+  constexpr int kClients = 16, kRequests = 12;
+  std::mutex m;
+  std::vector<double> latencies_ms;
+  std::map<int, int> statuses;  // -1: no answer
+  int refused_without_retry_after = 0;
+  std::vector<std::thread> threads;
+  for (int c = 0; c < kClients; ++c)
+    threads.emplace_back([&, c] {
+      httplib::Client client("127.0.0.1", server.port());
+      client.set_read_timeout(60, 0);
+      for (int r = 0; r < kRequests; ++r) {
+        const int kind = (c + r) % 4;
+        const auto t0 = std::chrono::steady_clock::now();
+        httplib::Result res =
+            kind == 0   ? client.Post("/api/query", fmt::format(R"({{"class": "{}", "top_k": {}}})", r % 2 ? "smooth" : "rough", 1 + r),
+                                      "application/json")
+            : kind == 1 ? client.Post("/api/at", fmt::format(R"({{"points": [[{}, 0.3, 0], [-1, -1, 0]]}})", 0.1 * r),
+                                      "application/json")
+            : kind == 2 ? client.Get(fmt::format("/api/classes?bbox=-2,-2,-1,{},2,1", 0.5 + 0.1 * r))
+                        : client.Get(fmt::format("/api/nav-grid?near=0,0&radius={}", 1.0 + 0.1 * r));
+        const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+        const std::lock_guard lock(m);
+        latencies_ms.push_back(ms);
+        ++statuses[res ? res->status : -1];
+        if (res && res->status == 503 && res->get_header_value("Retry-After").empty()) ++refused_without_retry_after;
+      }
+    });
+  for (std::thread& t : threads) t.join();
+  std::sort(latencies_ms.begin(), latencies_ms.end());
+  ASSERT_EQ(latencies_ms.size(), static_cast<std::size_t>(kClients * kRequests));
+  fmt::print("{} requests from {} clients (--max-concurrent 4): {} answered 200, {} refused 503; p50 {:.1f} ms, p99 "
+             "{:.1f} ms\n",
+             latencies_ms.size(), kClients, statuses[200], statuses[503], latencies_ms[latencies_ms.size() / 2],
+             latencies_ms[latencies_ms.size() * 99 / 100]);
+  for (const auto& [status, n] : statuses) EXPECT_TRUE(status == 200 || status == 503) << n << " answers with " << status;
+  EXPECT_GT(statuses[200], 0);
+  EXPECT_EQ(refused_without_retry_after, 0);
+  httplib::Client client("127.0.0.1", server.port());
+  const auto health = client.Get("/healthz");
+  ASSERT_TRUE(health);
+  EXPECT_EQ(health->status, 200);
+  EXPECT_EQ(server.stop(SIGTERM), 0);
+}
+
+}  // namespace
+}  // namespace slamvdb
