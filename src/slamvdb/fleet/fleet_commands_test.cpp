@@ -1,9 +1,12 @@
-// `slamvdb push` end to end on a real PostgreSQL 15 + PostGIS server the test starts: a saved map
-// pushed, pushed again (nothing written), refused with exit 1 naming the problem (a server that
-// is not there: the URL shown without its password), usage errors with exit 2 before any work.
+// `slamvdb push` and `slamvdb pull` end to end on a real PostgreSQL 15 + PostGIS server the test
+// starts: a saved map pushed, pushed again (nothing written), refused with exit 1 naming the problem
+// (a server that is not there: the URL shown without its password), usage errors with exit 2 before
+// any work; a region pulled into a map file that loads, a damaged payload leaving no file.
 #include <gtest/gtest.h>
 
+#include "slamvdb/fleet/fleet_database.hpp"
 #include "slamvdb/store/map_store.hpp"
+#include "slamvdb/testing/fleet_fixtures.hpp"
 #include "slamvdb/testing/map_store_fixtures.hpp"
 #include "slamvdb/testing/postgres_server.hpp"
 #include "slamvdb/testing/run_command.hpp"
@@ -68,6 +71,48 @@ TEST(PushCommand, ErrorsAreExitOneWithTheReasonAndUsageErrorsExitTwo) {
   EXPECT_EQ(pose.exit_code, 2) << pose.output;
   EXPECT_NE(pose.output.find("--fleet-pose"), std::string::npos) << pose.output;
   EXPECT_EQ(run_command(shell_quote(SLAMVDB_CLI_PATH) + " push " + quote_path(tmp.path / "missing.svdb") + " --db x 2>&1").exit_code, 2);
+}
+
+TEST(PullCommand, WritesARegionAsAMapFileThatLoadsAndWritesNothingOnADamagedPayload) {
+  slamvdb::testing::TempDir tmp;
+  auto& server = slamvdb::testing::shared_postgres_server();
+  const std::string db = slamvdb::testing::fresh_test_database(server);
+  const SemanticMap monday = slamvdb::testing::patch_map(3, 40);
+  Pose north = Pose::Identity();
+  north.translation() = Vec3d(0, 50, 0);
+  FleetDatabase fleet(server.url(db));
+  fleet.push_map(monday, {.session = "monday"});
+  fleet.push_map(slamvdb::testing::patch_map(3, 40), {.session = "tuesday", .T_fleet_session = north});
+  const std::string pull = shell_quote(SLAMVDB_CLI_PATH) + " --quiet pull --db " + shell_quote(server.url(db));
+
+  const auto region = tmp.path / "region.svdb";
+  const auto both = run_command(pull + " --bbox 95,-5,-1,140,60,2 -o " + quote_path(region) + " 2>&1");
+  ASSERT_EQ(both.exit_code, 0) << both.output;
+  EXPECT_NE(both.output.find("pulled     2 submaps of 2 sessions (monday, tuesday)"), std::string::npos) << both.output;
+  const SemanticMap back = load_map(region);
+  ASSERT_EQ(back.num_submaps(), 2u);
+  EXPECT_EQ(back.num_semantic_voxels(), 2 * 800u);
+  EXPECT_EQ(back.info().model_id, "fleet-test-space");
+  EXPECT_NE(back.info().source.find("fleet map"), std::string::npos) << back.info().source;
+  EXPECT_TRUE(back.submap_info(1)->T_world_submap.translation().isApprox(Vec3d(100, 50, 0)));  // tuesday's, moved north
+  std::size_t monday_occupied = 0;
+  monday.read_submap(1, [&](const Submap& s) { monday_occupied = s.voxels().occupancy().num_occupied_voxels(); });
+  back.read_submap(0, [&](const Submap& s) { EXPECT_EQ(s.voxels().occupancy().num_occupied_voxels(), monday_occupied); });
+
+  const auto one = run_command(pull + " --near 100,50 --radius 3 --session tuesday -o " + quote_path(region) + " 2>&1");
+  ASSERT_EQ(one.exit_code, 0) << one.output;
+  EXPECT_EQ(load_map(region).num_submaps(), 1u);
+
+  slamvdb::testing::psql_value(server, "UPDATE slamvdb.semantics SET counts = set_byte(counts, 0, 7) WHERE submap = 2", db);
+  const auto damaged_file = tmp.path / "damaged.svdb";
+  const auto damaged = run_command(pull + " --bbox -10,-10,-1,300,10,2 -o " + quote_path(damaged_file) + " 2>&1");
+  EXPECT_EQ(damaged.exit_code, 1) << damaged.output;
+  EXPECT_NE(damaged.output.find("session 'monday' submap 2: CRC mismatch in semantic chunk 0"), std::string::npos)
+      << damaged.output;
+  EXPECT_FALSE(std::filesystem::exists(damaged_file));
+
+  EXPECT_EQ(run_command(pull + " -o " + quote_path(region) + " 2>&1").exit_code, 2);  // no region
+  EXPECT_EQ(run_command(pull + " --bbox 1,2,3 -o " + quote_path(region) + " 2>&1").exit_code, 2);
 }
 
 }  // namespace
