@@ -10,6 +10,7 @@
 #include "feature_options.hpp"
 #include "io_options.hpp"
 #include "option_checks.hpp"
+#include "map_source_options.hpp"
 #include "region_options.hpp"
 #include "slamvdb/core/text_escape.hpp"
 #include "slamvdb/io/nav_grid_files.hpp"
@@ -22,13 +23,14 @@ namespace slamvdb::cli::cmd_classify {
 namespace {
 
 struct Options {
-  std::string map, queries, csv, grid, png;
+  std::string queries, csv, grid, png;
   bool no_void_rule = false, ignore_model_id = false;
   double robot_height = NavGridOptions{}.robot_height;
   double grid_resolution = 0;
   float min_confidence = 0.f;
   std::vector<std::string> costs;  // NAME=COST
   RegionOptions region;
+  MapSourceOptions source;
 };
 
 // Cost per class of the query set (query/nav_grid.hpp's rules): a bad --cost or a class without a
@@ -50,7 +52,7 @@ std::vector<std::filesystem::path> nav_grid_files_of(const std::string& prefix) 
 void run(const Options& opt) {
   const QuerySet queries = load_query_set(opt.queries);
   const auto t0 = std::chrono::steady_clock::now();
-  const SemanticMap map = load_map(opt.map);
+  const SemanticMap map = opt.source.read(opt.region.region());
   ClassifyOptions options;
   options.void_to_second_best = !opt.no_void_rule;
   const ModelIdCheck model_check = opt.ignore_model_id ? ModelIdCheck::kIgnore : ModelIdCheck::kRequireMatch;
@@ -60,7 +62,7 @@ void run(const Options& opt) {
   sort_by_cell(cells);
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   const ClassSummary summary = summarize_classes(cells, queries, opt.min_confidence);
-  fmt::print("{}: {} semantic voxels{} classified with {} ({} classes, void -> second best {}) in {:.2f} s\n", opt.map,
+  fmt::print("{}: {} semantic voxels{} classified with {} ({} classes, void -> second best {}) in {:.2f} s\n", opt.source.name(),
              cells.size(), region ? " in the region (--bbox / --near)" : "", opt.queries, queries.size(),
              opt.no_void_rule ? "off" : "on", seconds);
   fmt::print("| class | voxels | share |\n|---|---|---|\n");
@@ -117,7 +119,7 @@ void add(CLI::App& root) {
       "classify",
       "Label every semantic voxel of a map with the class of its most similar query vector (cosine; a voxel whose "
       "best class is void takes its second-best, as in the paper), read through the global index in the world frame");
-  cmd->add_option("map", opt->map, "Map file (.svdb)")->required()->check(CLI::ExistingFile);
+  opt->source.add_to(cmd);
   cmd->add_option("--queries", opt->queries, "Query set file (train-queries / import-queries)")
       ->required()
       ->check(CLI::ExistingFile);
@@ -157,9 +159,10 @@ void add(CLI::App& root) {
     if (!opt->png.empty() && std::filesystem::path(opt->png).extension() != ".png")
       usage_error(fmt::format("--png {}: the picture is written as .png", opt->png));
     opt->region.region();
+    opt->source.check(opt->region);
   });
   auto io = std::make_shared<IoOptions>(cmd);
-  io->input("map", opt->map);
+  io->input("map", opt->source.map);
   io->input("--queries", opt->queries);
   io->output("-o", opt->csv);
   io->output("--png", opt->png, png_with_yaml);

@@ -8,6 +8,7 @@
 #include "feature_options.hpp"
 #include "io_options.hpp"
 #include "option_checks.hpp"
+#include "map_source_options.hpp"
 #include "region_options.hpp"
 #include "text_encoder_option.hpp"
 #include "slamvdb/core/csv.hpp"
@@ -28,8 +29,9 @@ namespace slamvdb::cli::cmd_query {
 namespace {
 
 struct Options {
-  std::string map, queries, output, at_csv, text_model, image_model, ply, png;
+  std::string queries, output, at_csv, text_model, image_model, ply, png;
   RegionOptions region;
+  MapSourceOptions source;
   std::vector<std::string> text, not_text, classes, not_classes, images, at, vectors, not_vectors;
   std::size_t top_k = 100;
   float threshold = -std::numeric_limits<float>::infinity();
@@ -202,7 +204,7 @@ void run(const Options& opt) {
   const std::optional<QueryRegion> region = opt.region.region();
   if (spatial && region) throw CLI::ValidationError("--bbox", "--bbox and --near limit a similarity query, not --at points");
   const std::vector<Vec3d> points = spatial ? read_points(opt) : std::vector<Vec3d>{};
-  const SemanticMap map = load_map(opt.map);
+  const SemanticMap map = opt.source.read(opt.region.region());
   if (spatial) return run_points(opt, map, points);
 
   const Eigen::VectorXf q = build_query(opt, map);
@@ -276,7 +278,7 @@ void write_results(const std::string& format, const std::string& output, const O
       fmt::print("PLY  {}: {} voxels coloured by score ({:.3f}..{:.3f}, viridis)\n", output, voxels.size(), lo, hi);
     } else {
       HtmlViewerScene scene;
-      scene.title = fmt::format("slamvdb query on {}", opt.map);
+      scene.title = fmt::format("slamvdb query on {}", opt.source.name());
       scene.voxel_size = map.params().occupancy.voxel_size;
       for (const ColouredVoxel& v : voxels) scene.positions.push_back(v.position.cast<double>()), scene.colours.push_back(v.rgb);
       std::vector<Rgb8> stops;
@@ -294,7 +296,7 @@ void add(CLI::App& root) {
       "query",
       "Ask a map: the voxels most similar to a query (text, a class of a query set, an image; several terms add up, "
       "--not terms subtract: the paper's Figure 6.2), or what the map holds at world points (--at)");
-  cmd->add_option("map", opt->map, "Map file (.svdb)")->required()->check(CLI::ExistingFile);
+  opt->source.add_to(cmd);
   cmd->add_option("--text", opt->text, "A text query (repeatable: the terms add up)");
   cmd->add_option("--not", opt->not_text, "A text to subtract (repeatable)");
   cmd->add_option("--queries", opt->queries, "Query set file, for --class / --not-class, and to give every answer (--at points or similarity "
@@ -348,11 +350,12 @@ void add(CLI::App& root) {
   add_option_checks(cmd, [opt] {
     output_format(opt->output);
     opt->region.region();
+    opt->source.check(opt->region);
     if (!opt->ply.empty() && output_format(opt->ply) != ".ply") usage_error("--ply " + opt->ply + ": not a .ply name");
     if (!opt->png.empty() && output_format(opt->png) != ".png") usage_error("--png " + opt->png + ": not a .png name");
   });
   auto io = std::make_shared<IoOptions>(cmd);
-  io->input("map", opt->map);
+  io->input("map", opt->source.map);
   io->input("--queries", opt->queries);
   io->input("--image", opt->images);
   io->input("--vector", opt->vectors);

@@ -113,8 +113,12 @@ class ConfigEquivalence : public ::testing::Test {
   // The arguments every run of `cmd` has besides the option tried (which is left out of them).
   std::vector<std::string> base_args(CLI::App* cmd, const CLI::Option* tried) const {
     std::vector<std::string> args{cmd->get_name()};
+    // query and classify read a map file or, with --db, a fleet: the file unless a fleet option is tried.
+    const bool fleet_tried = (cmd->get_name() == "query" || cmd->get_name() == "classify") &&
+                             (tried->get_name() == "--db" || tried->get_name() == "--session");
     for (const CLI::Option* o : cmd->get_options()) {
-      if (o == tried || !o->get_required()) continue;
+      const bool map_file = o->get_positional() && o->get_name() == "map" && !fleet_tried;
+      if (o == tried || (!o->get_required() && !map_file)) continue;
       if (o->get_positional()) args.push_back(needed_value(cmd->get_name(), o));
       else args.push_back(o->get_name() + "=" + needed_value(cmd->get_name(), o));
     }
@@ -198,6 +202,10 @@ class ConfigEquivalence : public ::testing::Test {
       for (Sample& s : samples) s.companions = {"--format=mcap"};
     if ((cmd == "query" || cmd == "classify") && (name == "--near" || name == "--radius"))  // the two go together
       for (Sample& s : samples) s.companions = {name == "--near" ? "--radius=2" : "--near=1,2"};
+    if ((cmd == "query" || cmd == "classify") && (name == "--db" || name == "--session"))  // a fleet needs a region
+      for (Sample& s : samples)
+        s.companions = name == "--db" ? std::vector<std::string>{"--bbox=0,0,0,1,1,1"}
+                                      : std::vector<std::string>{"--db=postgresql:///fleet", "--bbox=0,0,0,1,1,1"};
     if (cmd == "serve" && (name == "--tls-cert" || name == "--tls-key"))  // the two go together
       for (Sample& s : samples) s.companions = {(name == "--tls-cert" ? "--tls-key=" : "--tls-cert=") + file.string()};
     if (o->get_expected_max() > 1 && !samples.empty())  // a repeatable option: two values at once

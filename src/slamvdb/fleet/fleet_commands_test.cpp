@@ -5,7 +5,10 @@
 #include <gtest/gtest.h>
 
 #include "slamvdb/fleet/fleet_database.hpp"
+#include "slamvdb/io/npy.hpp"
+#include "slamvdb/query/query_set.hpp"
 #include "slamvdb/store/map_store.hpp"
+#include "slamvdb/testing/text_file.hpp"
 #include "slamvdb/testing/fleet_fixtures.hpp"
 #include "slamvdb/testing/map_store_fixtures.hpp"
 #include "slamvdb/testing/postgres_server.hpp"
@@ -113,6 +116,58 @@ TEST(PullCommand, WritesARegionAsAMapFileThatLoadsAndWritesNothingOnADamagedPayl
 
   EXPECT_EQ(run_command(pull + " -o " + quote_path(region) + " 2>&1").exit_code, 2);  // no region
   EXPECT_EQ(run_command(pull + " --bbox 1,2,3 -o " + quote_path(region) + " 2>&1").exit_code, 2);
+}
+
+TEST(FleetQuery, QueryAndClassifyOnTheFleetAnswerAsOnThePulledFile) {
+  slamvdb::testing::TempDir tmp;
+  auto& server = slamvdb::testing::shared_postgres_server();
+  const std::string db = slamvdb::testing::fresh_test_database(server);
+  Pose north = Pose::Identity();
+  north.translation() = Vec3d(3, 4, 0);  // overlapping the first session: cells shared across sessions
+  FleetDatabase fleet(server.url(db));
+  fleet.push_map(slamvdb::testing::patch_map(3, 40), {.session = "monday"});
+  fleet.push_map(slamvdb::testing::patch_map(3, 40), {.session = "tuesday", .T_fleet_session = north});
+  const float v[4] = {1.0f, 0.05f, 0.02f, 0.1f};
+  const auto vector = tmp.path / "v.npy";
+  write_npy_array(vector, v, {4});
+  QuerySet q;
+  q.model_id = "fleet-test-space";
+  q.names = {"near-edge", "far-edge"};
+  q.vectors = QueryMatrix::Zero(2, 4);
+  q.vectors(0, 3) = 1;
+  q.vectors(1, 1) = 1;
+  const auto queries = tmp.path / "q.json";
+  save_query_set(queries, q);
+  const std::string cli = shell_quote(SLAMVDB_CLI_PATH) + " --quiet ";
+  const std::string url = shell_quote(server.url(db)), box = " --bbox 95,-5,-1,140,20,2";
+  const auto region = tmp.path / "region.svdb";
+  ASSERT_EQ(run_command(cli + "pull --db " + url + box + " -o " + quote_path(region)).exit_code, 0);
+
+  const auto file_q = tmp.path / "file_q.csv", fleet_q = tmp.path / "fleet_q.csv";
+  const auto a = run_command(cli + "query " + quote_path(region) + " --vector " + quote_path(vector) + box +
+                             " --top-k 500 -o " + quote_path(file_q) + " 2>&1");
+  const auto b = run_command(cli + "query --db " + url + " --vector " + quote_path(vector) + box +
+                             " --top-k 500 -o " + quote_path(fleet_q) + " 2>&1");
+  ASSERT_EQ(a.exit_code, 0) << a.output;
+  ASSERT_EQ(b.exit_code, 0) << b.output;
+  const std::string answers = slamvdb::testing::read_text_file(fleet_q);
+  EXPECT_EQ(answers, slamvdb::testing::read_text_file(file_q));
+  EXPECT_GT(std::count(answers.begin(), answers.end(), '\n'), 400);
+
+  const auto file_c = tmp.path / "file_c.csv", fleet_c = tmp.path / "fleet_c.csv";
+  const auto c = run_command(cli + "classify " + quote_path(region) + " --queries " + quote_path(queries) + box +
+                             " -o " + quote_path(file_c) + " 2>&1");
+  const auto d = run_command(cli + "classify --db " + url + " --session monday --session tuesday --queries " +
+                             quote_path(queries) + box + " -o " + quote_path(fleet_c) + " 2>&1");
+  ASSERT_EQ(c.exit_code, 0) << c.output;
+  ASSERT_EQ(d.exit_code, 0) << d.output;
+  EXPECT_EQ(slamvdb::testing::read_text_file(fleet_c), slamvdb::testing::read_text_file(file_c));
+
+  const auto no_region = run_command(cli + "query --db " + url + " --vector " + quote_path(vector) + " 2>&1");
+  EXPECT_EQ(no_region.exit_code, 2) << no_region.output;
+  EXPECT_NE(no_region.output.find("--db needs a region"), std::string::npos) << no_region.output;
+  EXPECT_EQ(run_command(cli + "query " + quote_path(region) + " --db " + url + box + " --vector " + quote_path(vector)).exit_code, 2);
+  EXPECT_EQ(run_command(cli + "classify " + quote_path(region) + " --session monday --queries " + quote_path(queries)).exit_code, 2);
 }
 
 }  // namespace

@@ -61,6 +61,9 @@ class FleetDatabase {
   // damaged in the database is an Error naming the session, submap and row), handed to `sink`
   // one at a time (memory: one submap).
   PullReport pull(const PullRequest& request, const std::function<void(PulledSubmap&&)>& sink);
+  // The region as one map in memory (the fleet's parameters; memory: the region, not the fleet),
+  // for questions asked of a region without a file: query and classify --db.
+  SemanticMap pull_map(const PullRequest& request);
 
   const std::string& display_url() const { return display_url_; }
 

@@ -146,4 +146,13 @@ PullReport FleetDatabase::pull(const PullRequest& request, const std::function<v
   return report;
 }
 
+SemanticMap FleetDatabase::pull_map(const PullRequest& request) {
+  const FleetDefinition fleet = definition();
+  MapInfo info = fleet.info;
+  info.source = fmt::format("fleet map {}", display_url_);
+  SemanticMap map(fleet.params, info);
+  pull(request, [&](PulledSubmap&& s) { map.add_finished_submap(s.info, std::move(s.voxels)); });
+  return map;
+}
+
 }  // namespace slamvdb::fleet

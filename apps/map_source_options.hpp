@@ -1,0 +1,44 @@
+#pragma once
+// Where `query` and `classify` read the map: a map file (the positional argument), or a region of
+// a fleet map (--db URL with --bbox or --near/--radius, and --session): PostGIS selects the
+// region's submaps and only those are read, so the answers equal those on the pulled file.
+#include <CLI/CLI.hpp>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "option_checks.hpp"
+#include "region_options.hpp"
+#include "slamvdb/fleet/fleet_database.hpp"
+#include "slamvdb/store/map_store.hpp"
+
+namespace slamvdb::cli {
+
+struct MapSourceOptions {
+  std::string map, db;
+  std::vector<std::string> sessions;
+
+  void add_to(CLI::App* cmd) {
+    cmd->add_option("map", map, "Map file (.svdb); or --db")->check(CLI::ExistingFile);
+    cmd->add_option("--db", db,
+                    "Ask a fleet map instead of a file: a libpq connection string (PostgreSQL + PostGIS, see "
+                    "`push`); needs a region (--bbox or --near with --radius), whose submaps alone are read");
+    cmd->add_option("--session", sessions, "With --db: only these sessions (repeatable; default: every session)");
+  }
+  // Usage checks before any work (exit 2).
+  void check(const RegionOptions& region) const {
+    if (map.empty() == db.empty()) usage_error("give a map file or --db URL (one of the two)");
+    if (!db.empty() && !region.given())
+      usage_error("--db needs a region (--bbox, or --near with --radius): a fleet map is not read whole");
+    if (db.empty() && !sessions.empty()) usage_error("--session selects sessions of a fleet map: it needs --db");
+  }
+  // For messages and titles: the file, or the fleet's URL without its password.
+  std::string name() const { return db.empty() ? map : fleet::redact_connection_url(db); }
+  SemanticMap read(const std::optional<QueryRegion>& region) const {
+    if (db.empty()) return load_map(map);
+    fleet::FleetDatabase fleet(db);
+    return fleet.pull_map({region->bounds(), sessions});
+  }
+};
+
+}  // namespace slamvdb::cli
