@@ -1,0 +1,277 @@
+#include "slamvdb/sessions/session_alignment.hpp"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <cmath>
+#include <optional>
+#include <set>
+
+#include "slamvdb/core/error.hpp"
+#include "slamvdb/localization/preprocessing.hpp"
+#include "slamvdb/localization/registration.hpp"
+#include "slamvdb/localization/voxel_hash_map.hpp"
+
+namespace slamvdb::sessions {
+
+using localization::VoxelHashMap;
+
+void AlignmentConfig::validate() const {
+  const auto require = [](bool ok, const std::string& what) {
+    if (!ok) throw Error("invalid alignment setting: " + what);
+  };
+  places.validate();
+  require(ring_key_neighbours > 0 && candidates_per_place > 0, "ring-key neighbours and candidates per place must be > 0");
+  require(max_descriptor_distance > 0.0 && max_descriptor_distance <= 1.0, "max descriptor distance must be in (0, 1]");
+  require(inlier_distance > 0.0 && max_rmse > 0.0, "inlier distance and max RMSE must be > 0");
+  require(min_overlap > 0.0 && min_overlap <= 1.0, fmt::format("min overlap {} must be in (0, 1]", min_overlap));
+  require(min_structure_overlap >= 0.0 && min_structure_overlap <= 1.0, "min structure overlap must be in [0, 1]");
+  require(consensus_translation > 0.0 && consensus_rotation > 0.0, "consensus tolerances must be > 0");
+  require(refine_voxel > 0.0, fmt::format("refine voxel {} m must be > 0", refine_voxel));
+  require(min_verified_pairs >= 2, "min verified pairs must be >= 2 (one pair cannot be checked against another)");
+  require(ambiguity_ratio > 0.0 && ambiguity_ratio <= 1.0, "ambiguity ratio must be in (0, 1]");
+}
+
+const char* to_string(PairRejection reason) {
+  switch (reason) {
+    case PairRejection::kIcpFailed: return "ICP failed";
+    case PairRejection::kLowOverlap: return "low overlap";
+    case PairRejection::kHighRmse: return "high RMSE";
+    case PairRejection::kTooLittleStructure: return "too little structure";
+    case PairRejection::kLowStructureOverlap: return "low structure overlap";
+    case PairRejection::kCount: break;
+  }
+  return "?";
+}
+
+namespace {
+
+struct AlignmentSession {
+  const std::vector<SessionSubmap>* submaps;
+  std::vector<std::vector<Vec3d>> clouds;  // thinned, submap frame
+  std::vector<Place> places;
+
+  AlignmentSession(const std::vector<SessionSubmap>& s, const PlaceConfig& config) : submaps(&s) {
+    clouds.reserve(s.size());
+    for (const SessionSubmap& submap : s) clouds.push_back(thinned_cloud(submap, config));
+    places = make_places(clouds, config);
+  }
+  Pose T_world_place(std::size_t place) const {
+    const Place& p = places[place];
+    return (*submaps)[p.submap].T_world_submap * p.T_submap_place();
+  }
+  // The place's voxels within `radius`, in the place frame (z above its ground level).
+  std::vector<Vec3d> around(std::size_t place, double radius) const {
+    return points_around(clouds[places[place].submap], places[place], radius);
+  }
+};
+
+Pose yaw_pose(double yaw) {
+  Pose T = Pose::Identity();
+  T.linear() = Eigen::AngleAxisd(yaw, Vec3d::UnitZ()).toRotationMatrix();
+  return T;
+}
+
+double rotation_angle(const Pose& T) { return Eigen::AngleAxisd(T.linear()).angle(); }
+
+// Verifies one candidate pair; fills `pair` and returns nothing when it is accepted.
+std::optional<PairRejection> verify_session_pair(const AlignmentSession& base, std::size_t base_place,
+                                                 const AlignmentSession& other, std::size_t other_place, double yaw,
+                                                 const AlignmentConfig& config, VerifiedPair& pair) {
+  const double voxel = config.places.cloud_voxel;
+  const double radius = config.places.scan_context.max_radius;
+  // The base side reaches farther: the guess has no translation and the place centres of the
+  // two sessions may be metres apart.
+  VoxelHashMap fine(voxel, 1e9, 20), coarse(3.0 * voxel, 1e9, 20);
+  const std::vector<Vec3d> target = base.around(base_place, radius + 9.0 * voxel);
+  fine.add_points(target);
+  coarse.add_points(target);
+  const std::vector<Vec3d> source = other.around(other_place, radius);
+  const std::optional<Pose> aligned = localization::align_coarse_to_fine(source, coarse, fine, yaw_pose(yaw), voxel);
+  if (!aligned) return PairRejection::kIcpFailed;
+  const localization::AlignmentQuality quality =
+      localization::alignment_quality(source, fine, *aligned, config.inlier_distance);
+  pair.overlap = quality.inlier_fraction();
+  pair.rmse = quality.inlier_rmse;
+  if (pair.overlap < config.min_overlap) return PairRejection::kLowOverlap;
+  if (pair.rmse > config.max_rmse) return PairRejection::kHighRmse;
+  std::vector<Vec3d> structure;
+  for (const Vec3d& p : source)
+    if (p.z() > config.structure_height) structure.push_back(p);
+  if (structure.size() < config.min_structure_voxels) return PairRejection::kTooLittleStructure;
+  pair.structure_overlap =
+      localization::alignment_quality(structure, fine, *aligned, config.inlier_distance).inlier_fraction();
+  if (pair.structure_overlap < config.min_structure_overlap) return PairRejection::kLowStructureOverlap;
+  pair.base_place = base_place;
+  pair.other_place = other_place;
+  pair.base_submap_id = (*base.submaps)[base.places[base_place].submap].id;
+  pair.other_submap_id = (*other.submaps)[other.places[other_place].submap].id;
+  pair.T_base_other = base.T_world_place(base_place) * *aligned * other.T_world_place(other_place).inverse();
+  return std::nullopt;
+}
+
+// Two pairs agree when their transforms put both pairs' places (of the other session) within the
+// tolerances of each other.
+bool pairs_agree(const VerifiedPair& a, const VerifiedPair& b, const AlignmentSession& other,
+                 const AlignmentConfig& config) {
+  if (rotation_angle(a.T_base_other.inverse() * b.T_base_other) > config.consensus_rotation) return false;
+  for (const VerifiedPair* p : {&a, &b}) {
+    const Vec3d x = other.T_world_place(p->other_place).translation();
+    if ((a.T_base_other * x - b.T_base_other * x).norm() > config.consensus_translation) return false;
+  }
+  return true;
+}
+
+std::size_t distinct_other_places(const std::vector<VerifiedPair>& pairs, const std::vector<std::size_t>& set) {
+  std::set<std::size_t> places;
+  for (const std::size_t i : set) places.insert(pairs[i].other_place);
+  return places.size();
+}
+
+// Every submap's voxels (thinned to `voxel`) within `radius` (horizontally) of any of the places,
+// in the world frame of the session. All submaps, not only the places' own: a place's
+// surroundings cut at its submap's edge would pull the other session's points inwards.
+std::vector<Vec3d> session_cloud_near(const AlignmentSession& session, const std::set<std::size_t>& places,
+                                      double radius, double voxel) {
+  std::vector<Eigen::Vector2d> centres;
+  for (const std::size_t p : places) centres.push_back(session.T_world_place(p).translation().head<2>());
+  const double r2 = radius * radius;
+  std::vector<Vec3d> out;
+  for (const SessionSubmap& submap : *session.submaps) {
+    std::vector<Vec3d> cloud;
+    cloud.reserve(submap.occupied_submap.size());
+    for (const Vec3f& x : submap.occupied_submap)
+      if (x.allFinite()) cloud.push_back(submap.T_world_submap * x.cast<double>());
+    for (const Vec3d& x : localization::voxel_downsample(cloud, voxel))
+      if (std::any_of(centres.begin(), centres.end(),
+                      [&](const Eigen::Vector2d& c) { return (x.head<2>() - c).squaredNorm() <= r2; }))
+        out.push_back(x);
+  }
+  return localization::voxel_downsample(out, voxel);
+}
+
+// Refines the winner with one ICP over all its places (world frames) at the refinement
+// resolution, from 2 cloud voxels down to one refinement voxel.
+Pose refine_alignment(const AlignmentSession& base, const AlignmentSession& other, const std::vector<VerifiedPair>& pairs,
+                      const std::vector<std::size_t>& winners, const Pose& start, const AlignmentConfig& config,
+                      SessionAlignment& result) {
+  const double voxel = config.refine_voxel;
+  const double radius = config.places.scan_context.max_radius;
+  std::set<std::size_t> base_places, other_places;
+  for (const std::size_t i : winners) base_places.insert(pairs[i].base_place), other_places.insert(pairs[i].other_place);
+  // The base reaches farther than the other session's places, so that every point of those
+  // finds its true neighbour.
+  VoxelHashMap target(voxel, 1e9, 20);
+  target.add_points(session_cloud_near(base, base_places, radius + 10.0, voxel));
+  const std::vector<Vec3d> source = session_cloud_near(other, other_places, radius, voxel);
+  Pose T = start;
+  for (const double distance : {2.0 * config.places.cloud_voxel, config.places.cloud_voxel, voxel}) {
+    localization::IcpOptions icp;
+    icp.max_correspondence_distance = distance;
+    icp.kernel_scale = distance / 9.0;
+    icp.max_iterations = 100;
+    icp.convergence = 1e-6;
+    icp.min_correspondences = 50;
+    const localization::IcpResult r = localization::align_point_to_point(source, target, T, icp);
+    if (!r.enough_correspondences) break;  // keep the last good transform
+    T = r.T_target_source;
+  }
+  const localization::AlignmentQuality quality = localization::alignment_quality(source, target, T, config.inlier_distance);
+  result.overlap = quality.inlier_fraction();
+  result.rmse = quality.inlier_rmse;
+  return T;
+}
+
+}  // namespace
+
+SessionAlignment align_sessions(const std::vector<SessionSubmap>& base_submaps,
+                                const std::vector<SessionSubmap>& other_submaps, const AlignmentConfig& config) {
+  config.validate();
+  const AlignmentSession base(base_submaps, config.places), other(other_submaps, config.places);
+  SessionAlignment result;
+  result.base_places = base.places.size();
+  result.other_places = other.places.size();
+
+  localization::ScanContextDatabase database(config.places.scan_context);
+  for (const Place& p : base.places) database.add(p.descriptor);
+  for (std::size_t j = 0; j < other.places.size() && database.size() > 0; ++j) {
+    const auto candidates = database.query(other.places[j].descriptor, database.size(), config.ring_key_neighbours,
+                                           config.max_descriptor_distance);
+    for (std::size_t k = 0; k < candidates.size() && k < config.candidates_per_place; ++k) {
+      ++result.candidate_pairs;
+      VerifiedPair pair;
+      pair.descriptor_distance = candidates[k].match.distance;
+      const auto rejection =
+          verify_session_pair(base, candidates[k].index, other, j, candidates[k].match.yaw, config, pair);
+      if (rejection) {
+        ++result.rejections[static_cast<std::size_t>(*rejection)];
+        continue;
+      }
+      result.verified.push_back(pair);
+    }
+  }
+  const std::vector<VerifiedPair>& pairs = result.verified;
+  if (pairs.empty()) {
+    result.refused = fmt::format(
+        "the maps do not overlap: none of {} candidate pairs between {} base and {} other places was verified",
+        result.candidate_pairs, result.base_places, result.other_places);
+    return result;
+  }
+
+  // Consensus: the pair that most others agree with (ties: the lower RMSE, then the first).
+  const auto support_of = [&](std::size_t i, const std::vector<bool>& eligible) {
+    std::vector<std::size_t> set;
+    for (std::size_t j = 0; j < pairs.size(); ++j)
+      if (eligible[j] && pairs_agree(pairs[i], pairs[j], other, config)) set.push_back(j);
+    return set;
+  };
+  std::vector<bool> all(pairs.size(), true);
+  std::size_t best = 0;
+  std::vector<std::size_t> winners;
+  for (std::size_t i = 0; i < pairs.size(); ++i) {
+    std::vector<std::size_t> set = support_of(i, all);
+    if (set.size() > winners.size() || (set.size() == winners.size() && pairs[i].rmse < pairs[best].rmse)) {
+      best = i;
+      winners = std::move(set);
+    }
+  }
+  result.consistent = winners;
+  // The rival: the largest agreeing set among the pairs that disagree with the winner.
+  std::vector<bool> outside(pairs.size(), true);
+  for (const std::size_t i : winners) outside[i] = false;
+  for (std::size_t i = 0; i < pairs.size(); ++i)
+    if (outside[i]) result.rival_pairs = std::max(result.rival_pairs, support_of(i, outside).size());
+
+  const std::size_t places_in_winner = distinct_other_places(pairs, winners);
+  if (places_in_winner < config.min_verified_pairs) {
+    result.refused = fmt::format(
+        "too little evidence: the largest consistent set of verified pairs covers {} place(s) of the other map, "
+        "{} needed ({} pairs verified of {} candidates)",
+        places_in_winner, config.min_verified_pairs, pairs.size(), result.candidate_pairs);
+    return result;
+  }
+  if (result.rival_pairs >= 2 &&
+      static_cast<double>(result.rival_pairs) >= config.ambiguity_ratio * static_cast<double>(winners.size())) {
+    result.refused = fmt::format(
+        "ambiguous: {} verified pairs agree on one alignment but {} others agree on a different one "
+        "(look-alike places?)",
+        winners.size(), result.rival_pairs);
+    return result;
+  }
+
+  result.T_base_other = refine_alignment(base, other, pairs, winners, pairs[best].T_base_other, config, result);
+  // Spread of the winning pairs about the result, as the standard error of their mean.
+  double sum_t = 0.0, sum_r = 0.0;
+  for (const std::size_t i : winners) {
+    const Vec3d x = other.T_world_place(pairs[i].other_place).translation();
+    sum_t += (result.T_base_other * x - pairs[i].T_base_other * x).squaredNorm();
+    sum_r += std::pow(rotation_angle(result.T_base_other.inverse() * pairs[i].T_base_other), 2);
+  }
+  const double n = static_cast<double>(winners.size());
+  result.sigma_translation = std::sqrt(sum_t / n) / std::sqrt(n);
+  result.sigma_rotation = std::sqrt(sum_r / n) / std::sqrt(n);
+  result.aligned = true;
+  return result;
+}
+
+}  // namespace slamvdb::sessions

@@ -1,0 +1,79 @@
+#pragma once
+// Where another session's map lies in a base session's world, from the maps alone (no prior):
+// places with ScanContext descriptors in both (place_descriptors.hpp), candidate pairs by
+// descriptor distance, each verified by coarse-to-fine ICP between the two submaps' voxels
+// around the places with an overlap and a fitness (inlier RMSE) test, then a robust consensus over
+// the verified pairs: the largest set of pairs that agree on one rigid transform wins, is refined
+// by one ICP over all its places, and is refused when it is too small or a disjoint set of
+// pairs nearly as large agrees on another transform (look-alike places).
+#include <array>
+#include <cstddef>
+#include <string>
+#include <vector>
+
+#include "slamvdb/core/types.hpp"
+#include "slamvdb/sessions/place_descriptors.hpp"
+
+namespace slamvdb::sessions {
+
+struct AlignmentConfig {
+  PlaceConfig places;
+  // Candidates: for every place of the other session, the ring-key neighbours among the base's
+  // places, re-ranked by the descriptor distance; the best few under the limit are verified.
+  std::size_t ring_key_neighbours = 10;
+  double max_descriptor_distance = 0.4;
+  std::size_t candidates_per_place = 3;
+  // Verification (on cloud_voxel clouds, as the loop closer's).
+  double inlier_distance = 0.3;  // metres
+  double min_overlap = 0.5;      // fraction of the other place's voxels on the base's
+  double max_rmse = 0.3;         // metres, over those inliers
+  // Structure: ground alone aligns anywhere (it slides), so a pair must also match the voxels
+  // standing above the place's ground level.
+  double structure_height = 1.0;          // metres above the place's ground
+  std::size_t min_structure_voxels = 50;
+  double min_structure_overlap = 0.5;
+  // Consensus: two pairs agree when their transforms move the pairs' place centres to within
+  // these of each other.
+  double consensus_translation = 1.0;  // metres
+  double consensus_rotation = 0.035;   // radians (2 degrees)
+  std::size_t min_verified_pairs = 3;  // in the winning set, from as many distinct places of the other session
+  // Ambiguity: refused when a set of pairs disjoint from the winner (agreeing with each other
+  // but not with it) has at least this fraction of the winner's pairs.
+  double ambiguity_ratio = 0.5;
+  // The winning set is refined at this resolution (the maps' voxel size or coarser): metres.
+  double refine_voxel = 0.25;
+  void validate() const;  // throws Error naming the setting
+};
+
+struct VerifiedPair {
+  std::size_t base_place = 0, other_place = 0;  // indices into the sessions' places
+  int base_submap_id = 0, other_submap_id = 0;
+  Pose T_base_other = Pose::Identity();  // the two worlds, from this pair alone
+  double descriptor_distance = 1.0;
+  double overlap = 0.0, rmse = 0.0, structure_overlap = 0.0;
+};
+
+enum class PairRejection { kIcpFailed, kLowOverlap, kHighRmse, kTooLittleStructure, kLowStructureOverlap, kCount };
+const char* to_string(PairRejection reason);
+
+struct SessionAlignment {
+  bool aligned = false;
+  std::string refused;  // why not, when not aligned (a sentence for the user)
+  Pose T_base_other = Pose::Identity();  // maps points of the other session's world into the base's
+  // The standard error of the winning pairs' transforms about the result: metres at their places,
+  // radians. Zero with one pair (then the alignment is refused anyway by min_verified_pairs >= 2).
+  double sigma_translation = 0.0, sigma_rotation = 0.0;
+  std::size_t base_places = 0, other_places = 0;
+  std::size_t candidate_pairs = 0;
+  std::vector<VerifiedPair> verified;      // every verified pair
+  std::vector<std::size_t> consistent;     // indices into verified: the winning set
+  std::size_t rival_pairs = 0;             // the largest set disjoint from the winner
+  std::array<std::size_t, static_cast<std::size_t>(PairRejection::kCount)> rejections{};
+  double overlap = 0.0, rmse = 0.0;        // of the refined alignment over the winning places
+};
+
+// Aligns `other` to `base` (each a session's submaps, anchors in its own world). Deterministic.
+SessionAlignment align_sessions(const std::vector<SessionSubmap>& base, const std::vector<SessionSubmap>& other,
+                                const AlignmentConfig& config = {});
+
+}  // namespace slamvdb::sessions

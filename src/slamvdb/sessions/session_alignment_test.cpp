@@ -1,0 +1,187 @@
+// Alignment of two sessions on SIMULATED maps made here: a procedural terrain (undulating ground,
+// boxes, trees, poles) along a winding route, cut into submaps of 50 m of route, each holding the
+// occupied 0.25 m voxels within 35 m of its stretch, anchored (world axes, voxel corner) where
+// its stretch starts, as the mapper anchors submaps.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdint>
+#include <set>
+#include <tuple>
+#include <vector>
+
+#include "slamvdb/core/error.hpp"
+#include "slamvdb/sessions/session_alignment.hpp"
+
+namespace slamvdb::sessions {
+namespace {
+
+struct AlignTestWorld {
+  std::vector<Vec3d> points;  // surface samples, world frame
+  std::vector<Vec3d> route;   // one sample per metre
+};
+
+class AlignTestRng {
+ public:
+  explicit AlignTestRng(uint64_t seed) : state_(seed * 0x9E3779B97F4A7C15ULL + 1) {}
+  double uniform(double lo, double hi) {  // splitmix64
+    uint64_t z = (state_ += 0x9E3779B97F4A7C15ULL);
+    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ULL;
+    z = (z ^ (z >> 27)) * 0x94D049BB133111EBULL;
+    z ^= z >> 31;
+    return lo + (hi - lo) * static_cast<double>(z >> 11) * 0x1.0p-53;
+  }
+
+ private:
+  uint64_t state_;
+};
+
+constexpr double kRange = 35.0;
+constexpr double kVoxel = 0.25;
+
+AlignTestWorld make_align_world(uint64_t seed, double length) {
+  AlignTestRng rng(seed);
+  const double phase = rng.uniform(0, 6.28), g1 = rng.uniform(0, 6.28), g2 = rng.uniform(0, 6.28);
+  const auto route_y = [&](double x) { return 15.0 * std::sin(x / 50.0 + phase); };
+  const auto ground = [&](double x, double y) { return 0.3 * std::sin(x / 17.0 + g1) + 0.3 * std::cos(y / 13.0 + g2); };
+  AlignTestWorld w;
+  for (double x = 0; x <= length; x += 1.0) w.route.emplace_back(x, route_y(x), ground(x, route_y(x)));
+  // Ground samples jittered off any lattice: samples on the voxel grid's boundaries would all
+  // land on one side and shift the map by half a voxel.
+  for (double gx = -kRange; gx <= length + kRange; gx += kVoxel)
+    for (double gy = route_y(gx) - kRange; gy <= route_y(gx) + kRange; gy += kVoxel) {
+      const double x = gx + rng.uniform(-0.5, 0.5) * kVoxel, y = gy + rng.uniform(-0.5, 0.5) * kVoxel;
+      w.points.emplace_back(x, y, ground(x, y));
+    }
+  const int objects = static_cast<int>((length + 2 * kRange) * 2 * kRange / 120.0);
+  for (int i = 0; i < objects; ++i) {
+    const double x = rng.uniform(-kRange, length + kRange);
+    const double side = rng.uniform(0, 1) < 0.5 ? -1.0 : 1.0;
+    const double y = route_y(x) + side * rng.uniform(4.0, kRange);
+    const double z0 = ground(x, y);
+    const double kind = rng.uniform(0, 1);
+    if (kind < 0.4) {  // a box: its sides and top
+      const double a = rng.uniform(1, 4), b = rng.uniform(1, 4), h = rng.uniform(1, 3), yaw = rng.uniform(0, 3.14);
+      const Eigen::Matrix2d R = Eigen::Rotation2Dd(yaw).toRotationMatrix();
+      for (double u = -a / 2; u <= a / 2; u += 0.2)
+        for (double v = -b / 2; v <= b / 2; v += 0.2)
+          for (double z = 0; z <= h; z += 0.2) {
+            const bool surface = std::abs(u) > a / 2 - 0.2 || std::abs(v) > b / 2 - 0.2 || z > h - 0.2;
+            if (!surface) continue;
+            const Eigen::Vector2d p = Eigen::Vector2d(x, y) + R * Eigen::Vector2d(u, v);
+            w.points.emplace_back(p.x(), p.y(), z0 + z);
+          }
+    } else {  // a tree (trunk and crown) or a pole
+      const bool tree = kind < 0.8;
+      const double r = tree ? rng.uniform(0.2, 0.4) : 0.15, h = tree ? rng.uniform(2, 4) : rng.uniform(5, 8);
+      for (double z = 0; z <= h; z += 0.2)
+        for (double t = 0; t < 6.28; t += 0.2 / r) w.points.emplace_back(x + r * std::cos(t), y + r * std::sin(t), z0 + z);
+      if (tree) {
+        const double c = rng.uniform(1.5, 3.0);
+        for (double el = -1.5; el <= 1.5; el += 0.2 / c)
+          for (double t = 0; t < 6.28; t += 0.2 / (c * std::max(0.1, std::cos(el))))
+            w.points.emplace_back(x + c * std::cos(el) * std::cos(t), y + c * std::cos(el) * std::sin(t),
+                                  z0 + h + c + c * std::sin(el));
+      }
+    }
+  }
+  return w;
+}
+
+// A session that drove the route from metre `begin` to `end`, in a world frame where the
+// simulated world's points are at T_session_world * p.
+std::vector<SessionSubmap> make_align_session(const AlignTestWorld& w, const Pose& T_session_world, int begin, int end,
+                                              int submap_length = 50) {
+  std::vector<SessionSubmap> submaps;
+  for (int s = begin; s < end; s += submap_length) {
+    const int stop = std::min(end, s + submap_length);
+    SessionSubmap submap;
+    submap.id = static_cast<int>(submaps.size());
+    const Vec3d start = T_session_world * w.route[s];
+    submap.T_world_submap.translation() = (start / kVoxel).array().floor().matrix() * kVoxel;
+    std::set<std::tuple<int, int, int>> voxels;
+    for (const Vec3d& p : w.points) {
+      if (p.x() < w.route[s].x() - kRange || p.x() > w.route[stop].x() + kRange) continue;
+      bool seen = false;
+      for (int k = s; k <= stop && !seen; k += 2) seen = (p - w.route[k]).head<2>().norm() < kRange;
+      if (!seen) continue;
+      const Vec3d q = (T_session_world * p - submap.T_world_submap.translation()) / kVoxel;
+      voxels.insert({static_cast<int>(std::floor(q.x())), static_cast<int>(std::floor(q.y())),
+                     static_cast<int>(std::floor(q.z()))});
+    }
+    for (const auto& [i, j, k] : voxels)
+      submap.occupied_submap.emplace_back((i + 0.5) * kVoxel, (j + 0.5) * kVoxel, (k + 0.5) * kVoxel);
+    submaps.push_back(std::move(submap));
+  }
+  return submaps;
+}
+
+Pose make_pose(double yaw_deg, const Vec3d& t) {
+  Pose T = Pose::Identity();
+  T.linear() = Eigen::AngleAxisd(yaw_deg * M_PI / 180.0, Vec3d::UnitZ()).toRotationMatrix();
+  T.translation() = t;
+  return T;
+}
+
+TEST(SessionAlignment, RecoversTheRigidTransformOfAMovedCopy) {
+  const AlignTestWorld world = make_align_world(7, 200);
+  const std::vector<SessionSubmap> base = make_align_session(world, Pose::Identity(), 0, 200);
+  // The copy: another world frame (turned 37 degrees, moved), re-voxelised in it, cut into
+  // submaps at other places (from metre 20).
+  const Pose T_other_world = make_pose(37.0, Vec3d(40.0, -25.0, 1.3));
+  const std::vector<SessionSubmap> other = make_align_session(world, T_other_world, 20, 200);
+
+  const SessionAlignment result = align_sessions(base, other);
+  ASSERT_TRUE(result.aligned) << result.refused;
+  const Pose expected = T_other_world.inverse();  // T_base_other
+  double worst = 0.0;
+  for (const Vec3d& x : world.route) {
+    const Vec3d x_other = T_other_world * x;
+    worst = std::max(worst, (result.T_base_other * x_other - expected * x_other).norm());
+  }
+  const double angle = Eigen::AngleAxisd((expected.inverse() * result.T_base_other).linear()).angle();
+  const Vec3d mid = T_other_world * world.route[world.route.size() / 2];
+  EXPECT_LT(worst, 0.10) << "metres, worst over the route; at its middle: "
+                         << (result.T_base_other * mid - expected * mid).transpose();
+  EXPECT_LT(angle * 180.0 / M_PI, 0.5);
+  EXPECT_GE(result.consistent.size(), 3u);
+  EXPECT_GT(result.sigma_translation, 0.0);
+  EXPECT_LT(result.sigma_translation, 0.5);
+  EXPECT_GT(result.overlap, 0.8);
+  // Every winning pair alone has the right rotation (a wrong one would have been out-voted).
+  for (const std::size_t i : result.consistent)
+    EXPECT_LT(Eigen::AngleAxisd((expected.inverse() * result.verified[i].T_base_other).linear()).angle(), 0.035);
+  for (std::size_t r = 0; r < result.rejections.size(); ++r)
+    std::printf("rejected (%s): %zu\n", to_string(static_cast<PairRejection>(r)), result.rejections[r]);
+  std::printf("SIMULATED: %zu/%zu places, %zu candidates, %zu verified, %zu consistent, rival %zu, error %.3f m %.3f deg,"
+              " sigma %.3f m %.4f deg\n",
+              result.base_places, result.other_places, result.candidate_pairs, result.verified.size(),
+              result.consistent.size(), result.rival_pairs, worst, angle * 180.0 / M_PI, result.sigma_translation,
+              result.sigma_rotation * 180.0 / M_PI);
+}
+
+TEST(SessionAlignment, RefusesMapsThatDoNotOverlap) {
+  // Two drives through different (equally built) terrain: nothing in common.
+  const AlignTestWorld world_a = make_align_world(7, 150), world_b = make_align_world(8, 150);
+  const std::vector<SessionSubmap> base = make_align_session(world_a, Pose::Identity(), 0, 150);
+  const std::vector<SessionSubmap> other = make_align_session(world_b, make_pose(-20.0, Vec3d(5, 5, 0)), 0, 150);
+  const SessionAlignment result = align_sessions(base, other);
+  EXPECT_FALSE(result.aligned);
+  EXPECT_FALSE(result.refused.empty());
+  EXPECT_GT(result.base_places, 0u);
+  EXPECT_GT(result.other_places, 0u);
+  EXPECT_GT(result.candidate_pairs, 0u) << "the descriptors were compared";
+  std::printf("SIMULATED: refused: %s (%zu verified)\n", result.refused.c_str(), result.verified.size());
+}
+
+TEST(SessionAlignment, ChecksItsSettings) {
+  AlignmentConfig config;
+  config.min_verified_pairs = 1;
+  EXPECT_THROW(config.validate(), Error);
+  config = {};
+  config.places.cloud_voxel = 0.0;
+  EXPECT_THROW(config.validate(), Error);
+}
+
+}  // namespace
+}  // namespace slamvdb::sessions
