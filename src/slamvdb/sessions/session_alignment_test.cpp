@@ -4,6 +4,8 @@
 // its stretch starts, as the mapper anchors submaps.
 #include <gtest/gtest.h>
 
+#include <chrono>
+#include <ctime>
 #include <cmath>
 #include <cstdint>
 #include <set>
@@ -131,7 +133,14 @@ TEST(SessionAlignment, RecoversTheRigidTransformOfAMovedCopy) {
   const Pose T_other_world = make_pose(37.0, Vec3d(40.0, -25.0, 1.3));
   const std::vector<SessionSubmap> other = make_align_session(world, T_other_world, 20, 200);
 
+  const auto t0 = std::chrono::steady_clock::now();
+  const std::clock_t c0 = std::clock();
   const SessionAlignment result = align_sessions(base, other);
+  std::printf("align_sessions: %.2f s wall, %.2f s CPU\n",
+              std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(),
+              static_cast<double>(std::clock() - c0) / CLOCKS_PER_SEC);
+  for (std::size_t r = 0; r < result.rejections.size(); ++r)
+    std::printf("rejected (%s): %zu\n", to_string(static_cast<PairRejection>(r)), result.rejections[r]);
   ASSERT_TRUE(result.aligned) << result.refused;
   const Pose expected = T_other_world.inverse();  // T_base_other
   double worst = 0.0;
@@ -151,8 +160,6 @@ TEST(SessionAlignment, RecoversTheRigidTransformOfAMovedCopy) {
   // Every winning pair alone has the right rotation (a wrong one would have been out-voted).
   for (const std::size_t i : result.consistent)
     EXPECT_LT(Eigen::AngleAxisd((expected.inverse() * result.verified[i].T_base_other).linear()).angle(), 0.035);
-  for (std::size_t r = 0; r < result.rejections.size(); ++r)
-    std::printf("rejected (%s): %zu\n", to_string(static_cast<PairRejection>(r)), result.rejections[r]);
   std::printf("SIMULATED: %zu/%zu places, %zu candidates, %zu verified, %zu consistent, rival %zu, error %.3f m %.3f deg,"
               " sigma %.3f m %.4f deg\n",
               result.base_places, result.other_places, result.candidate_pairs, result.verified.size(),
