@@ -26,10 +26,8 @@ void AlignmentConfig::validate() const {
   require(inlier_distance > 0.0 && max_rmse > 0.0, "inlier distance and max RMSE must be > 0");
   require(min_overlap > 0.0 && min_overlap <= 1.0, fmt::format("min overlap {} must be in (0, 1]", min_overlap));
   require(min_structure_overlap >= 0.0 && min_structure_overlap <= 1.0, "min structure overlap must be in [0, 1]");
-  require(consensus_translation > 0.0 && consensus_rotation > 0.0, "consensus tolerances must be > 0");
   require(refine_voxel > 0.0, fmt::format("refine voxel {} m must be > 0", refine_voxel));
-  require(min_verified_pairs >= 2, "min verified pairs must be >= 2 (one pair cannot be checked against another)");
-  require(ambiguity_ratio > 0.0 && ambiguity_ratio <= 1.0, "ambiguity ratio must be in (0, 1]");
+  consensus.validate();
 }
 
 const char* to_string(PairRejection reason) {
@@ -120,26 +118,9 @@ std::optional<PairRejection> verify_session_pair(const AlignmentSession& base, s
   pair.other_place = other_place;
   pair.base_submap_id = (*base.submaps)[base.places[base_place].submap].id;
   pair.other_submap_id = (*other.submaps)[other.places[other_place].submap].id;
+  pair.other_place_world = other.T_world_place(other_place).translation();
   pair.T_base_other = base.T_world_place(base_place) * *aligned * other.T_world_place(other_place).inverse();
   return std::nullopt;
-}
-
-// Two pairs agree when their transforms put both pairs' places (of the other session) within the
-// tolerances of each other.
-bool pairs_agree(const VerifiedPair& a, const VerifiedPair& b, const AlignmentSession& other,
-                 const AlignmentConfig& config) {
-  if (rotation_angle(a.T_base_other.inverse() * b.T_base_other) > config.consensus_rotation) return false;
-  for (const VerifiedPair* p : {&a, &b}) {
-    const Vec3d x = other.T_world_place(p->other_place).translation();
-    if ((a.T_base_other * x - b.T_base_other * x).norm() > config.consensus_translation) return false;
-  }
-  return true;
-}
-
-std::size_t distinct_other_places(const std::vector<VerifiedPair>& pairs, const std::vector<std::size_t>& set) {
-  std::set<std::size_t> places;
-  for (const std::size_t i : set) places.insert(pairs[i].other_place);
-  return places.size();
 }
 
 // Every submap's voxels (thinned to `voxel`) within `radius` (horizontally) of any of the places,
@@ -235,52 +216,20 @@ SessionAlignment align_sessions(const std::vector<SessionSubmap>& base_submaps,
     return result;
   }
 
-  // Consensus: the pair that most others agree with (ties: the lower RMSE, then the first).
-  const auto support_of = [&](std::size_t i, const std::vector<bool>& eligible) {
-    std::vector<std::size_t> set;
-    for (std::size_t j = 0; j < pairs.size(); ++j)
-      if (eligible[j] && pairs_agree(pairs[i], pairs[j], other, config)) set.push_back(j);
-    return set;
-  };
-  std::vector<bool> all(pairs.size(), true);
-  std::size_t best = 0;
-  std::vector<std::size_t> winners;
-  for (std::size_t i = 0; i < pairs.size(); ++i) {
-    std::vector<std::size_t> set = support_of(i, all);
-    if (set.size() > winners.size() || (set.size() == winners.size() && pairs[i].rmse < pairs[best].rmse)) {
-      best = i;
-      winners = std::move(set);
-    }
-  }
-  result.consistent = winners;
-  // The rival: the largest agreeing set among the pairs that disagree with the winner.
-  std::vector<bool> outside(pairs.size(), true);
-  for (const std::size_t i : winners) outside[i] = false;
-  for (std::size_t i = 0; i < pairs.size(); ++i)
-    if (outside[i]) result.rival_pairs = std::max(result.rival_pairs, support_of(i, outside).size());
-
-  const std::size_t places_in_winner = distinct_other_places(pairs, winners);
-  if (places_in_winner < config.min_verified_pairs) {
-    result.refused = fmt::format(
-        "too little evidence: the largest consistent set of verified pairs covers {} place(s) of the other map, "
-        "{} needed ({} pairs verified of {} candidates)",
-        places_in_winner, config.min_verified_pairs, pairs.size(), result.candidate_pairs);
+  const PairConsensus consensus = find_pair_consensus(pairs, config.consensus);
+  result.consistent = consensus.winners;
+  result.rival_pairs = consensus.rival_pairs;
+  if (!consensus.refused.empty()) {
+    result.refused = fmt::format("{} (of {} candidate pairs)", consensus.refused, result.candidate_pairs);
     return result;
   }
-  if (result.rival_pairs >= 2 &&
-      static_cast<double>(result.rival_pairs) >= config.ambiguity_ratio * static_cast<double>(winners.size())) {
-    result.refused = fmt::format(
-        "ambiguous: {} verified pairs agree on one alignment but {} others agree on a different one "
-        "(look-alike places?)",
-        winners.size(), result.rival_pairs);
-    return result;
-  }
-
+  const std::vector<std::size_t>& winners = consensus.winners;
+  const std::size_t best = consensus.best;
   result.T_base_other = refine_alignment(base, other, pairs, winners, pairs[best].T_base_other, config, result);
   // Spread of the winning pairs about the result, as the standard error of their mean.
   double sum_t = 0.0, sum_r = 0.0;
   for (const std::size_t i : winners) {
-    const Vec3d x = other.T_world_place(pairs[i].other_place).translation();
+    const Vec3d& x = pairs[i].other_place_world;
     sum_t += (result.T_base_other * x - pairs[i].T_base_other * x).squaredNorm();
     sum_r += std::pow(rotation_angle(result.T_base_other.inverse() * pairs[i].T_base_other), 2);
   }

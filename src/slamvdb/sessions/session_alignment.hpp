@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "slamvdb/core/types.hpp"
+#include "slamvdb/sessions/pair_consensus.hpp"
 #include "slamvdb/sessions/place_descriptors.hpp"
 
 namespace slamvdb::sessions {
@@ -34,25 +35,10 @@ struct AlignmentConfig {
   double structure_height = 1.0;          // metres above the place's ground
   std::size_t min_structure_voxels = 50;
   double min_structure_overlap = 0.5;
-  // Consensus: two pairs agree when their transforms move the pairs' place centres to within
-  // these of each other.
-  double consensus_translation = 1.0;  // metres
-  double consensus_rotation = 0.035;   // radians (2 degrees)
-  std::size_t min_verified_pairs = 3;  // in the winning set, from as many distinct places of the other session
-  // Ambiguity: refused when a set of pairs disjoint from the winner (agreeing with each other
-  // but not with it) has at least this fraction of the winner's pairs.
-  double ambiguity_ratio = 0.5;
+  ConsensusConfig consensus;
   // The winning set is refined at this resolution (the maps' voxel size or coarser): metres.
   double refine_voxel = 0.25;
   void validate() const;  // throws Error naming the setting
-};
-
-struct VerifiedPair {
-  std::size_t base_place = 0, other_place = 0;  // indices into the sessions' places
-  int base_submap_id = 0, other_submap_id = 0;
-  Pose T_base_other = Pose::Identity();  // the two worlds, from this pair alone
-  double descriptor_distance = 1.0;
-  double overlap = 0.0, rmse = 0.0, structure_overlap = 0.0;
 };
 
 enum class PairRejection { kIcpFailed, kLowOverlap, kHighRmse, kTooLittleStructure, kLowStructureOverlap, kCount };

@@ -41,11 +41,14 @@ class AlignTestRng {
 constexpr double kRange = 35.0;
 constexpr double kVoxel = 0.25;
 
-AlignTestWorld make_align_world(uint64_t seed, double length) {
+// `repeat` > 0: look-alike places, a straight route whose ground and objects repeat every
+// `repeat` metres along it.
+AlignTestWorld make_align_world(uint64_t seed, double length, double repeat = 0.0) {
   AlignTestRng rng(seed);
   const double phase = rng.uniform(0, 6.28), g1 = rng.uniform(0, 6.28), g2 = rng.uniform(0, 6.28);
-  const auto route_y = [&](double x) { return 15.0 * std::sin(x / 50.0 + phase); };
-  const auto ground = [&](double x, double y) { return 0.3 * std::sin(x / 17.0 + g1) + 0.3 * std::cos(y / 13.0 + g2); };
+  const double bend = repeat > 0 ? 0.0 : 15.0, swell = repeat > 0 ? 0.0 : 0.3;
+  const auto route_y = [&](double x) { return bend * std::sin(x / 50.0 + phase); };
+  const auto ground = [&](double x, double y) { return swell * std::sin(x / 17.0 + g1) + 0.3 * std::cos(y / 13.0 + g2); };
   AlignTestWorld w;
   for (double x = 0; x <= length; x += 1.0) w.route.emplace_back(x, route_y(x), ground(x, route_y(x)));
   // Ground samples jittered off any lattice: samples on the voxel grid's boundaries would all
@@ -55,9 +58,11 @@ AlignTestWorld make_align_world(uint64_t seed, double length) {
       const double x = gx + rng.uniform(-0.5, 0.5) * kVoxel, y = gy + rng.uniform(-0.5, 0.5) * kVoxel;
       w.points.emplace_back(x, y, ground(x, y));
     }
-  const int objects = static_cast<int>((length + 2 * kRange) * 2 * kRange / 120.0);
+  const double span = repeat > 0 ? repeat : length + 2 * kRange;
+  const int objects = static_cast<int>(span * 2 * kRange / 120.0);
+  std::vector<Vec3d> object_points;
   for (int i = 0; i < objects; ++i) {
-    const double x = rng.uniform(-kRange, length + kRange);
+    const double x = repeat > 0 ? rng.uniform(0, repeat) : rng.uniform(-kRange, length + kRange);
     const double side = rng.uniform(0, 1) < 0.5 ? -1.0 : 1.0;
     const double y = route_y(x) + side * rng.uniform(4.0, kRange);
     const double z0 = ground(x, y);
@@ -71,22 +76,28 @@ AlignTestWorld make_align_world(uint64_t seed, double length) {
             const bool surface = std::abs(u) > a / 2 - 0.2 || std::abs(v) > b / 2 - 0.2 || z > h - 0.2;
             if (!surface) continue;
             const Eigen::Vector2d p = Eigen::Vector2d(x, y) + R * Eigen::Vector2d(u, v);
-            w.points.emplace_back(p.x(), p.y(), z0 + z);
+            object_points.emplace_back(p.x(), p.y(), z0 + z);
           }
     } else {  // a tree (trunk and crown) or a pole
       const bool tree = kind < 0.8;
       const double r = tree ? rng.uniform(0.2, 0.4) : 0.15, h = tree ? rng.uniform(2, 4) : rng.uniform(5, 8);
       for (double z = 0; z <= h; z += 0.2)
-        for (double t = 0; t < 6.28; t += 0.2 / r) w.points.emplace_back(x + r * std::cos(t), y + r * std::sin(t), z0 + z);
+        for (double t = 0; t < 6.28; t += 0.2 / r) object_points.emplace_back(x + r * std::cos(t), y + r * std::sin(t), z0 + z);
       if (tree) {
         const double c = rng.uniform(1.5, 3.0);
         for (double el = -1.5; el <= 1.5; el += 0.2 / c)
           for (double t = 0; t < 6.28; t += 0.2 / (c * std::max(0.1, std::cos(el))))
-            w.points.emplace_back(x + c * std::cos(el) * std::cos(t), y + c * std::cos(el) * std::sin(t),
+            object_points.emplace_back(x + c * std::cos(el) * std::cos(t), y + c * std::cos(el) * std::sin(t),
                                   z0 + h + c + c * std::sin(el));
       }
     }
   }
+  if (repeat <= 0) {
+    w.points.insert(w.points.end(), object_points.begin(), object_points.end());
+    return w;
+  }
+  for (double shift = -std::ceil(kRange / repeat) * repeat; shift <= length + kRange; shift += repeat)
+    for (const Vec3d& p : object_points) w.points.emplace_back(p.x() + shift, p.y(), p.z());
   return w;
 }
 
@@ -167,6 +178,26 @@ TEST(SessionAlignment, RecoversTheRigidTransformOfAMovedCopy) {
               result.sigma_rotation * 180.0 / M_PI);
 }
 
+TEST(SessionAlignment, LookAlikePlacesGiveNoFalseAlignment) {
+  // Ground and objects repeat every 30 m along a straight route: every place has look-alikes one
+  // or more periods away. The copy is moved by 12 m along the route, which is no multiple of 30.
+  const AlignTestWorld world = make_align_world(11, 180, 30.0);
+  const std::vector<SessionSubmap> base = make_align_session(world, Pose::Identity(), 0, 180);
+  const Pose T_other_world = make_pose(-20.0, Vec3d(12.0, 3.0, 0.4));
+  const std::vector<SessionSubmap> other = make_align_session(world, T_other_world, 30, 180);
+  const SessionAlignment result = align_sessions(base, other);
+  const Pose expected = T_other_world.inverse();
+  if (result.aligned) {  // then it must be the true alignment, not a period away
+    const Vec3d x = T_other_world * world.route[world.route.size() / 2];
+    EXPECT_LT((result.T_base_other * x - expected * x).norm(), 0.10) << "a false alignment";
+  } else {
+    EXPECT_NE(result.refused.find("ambiguous"), std::string::npos) << result.refused;
+  }
+  std::printf("SIMULATED look-alikes: %s (%zu verified, %zu consistent, rival %zu)\n",
+              result.aligned ? "aligned" : result.refused.c_str(), result.verified.size(), result.consistent.size(),
+              result.rival_pairs);
+}
+
 TEST(SessionAlignment, RefusesMapsThatDoNotOverlap) {
   // Two drives through different (equally built) terrain: nothing in common.
   const AlignTestWorld world_a = make_align_world(7, 150), world_b = make_align_world(8, 150);
@@ -183,7 +214,7 @@ TEST(SessionAlignment, RefusesMapsThatDoNotOverlap) {
 
 TEST(SessionAlignment, ChecksItsSettings) {
   AlignmentConfig config;
-  config.min_verified_pairs = 1;
+  config.consensus.min_verified_pairs = 1;
   EXPECT_THROW(config.validate(), Error);
   config = {};
   config.places.cloud_voxel = 0.0;
