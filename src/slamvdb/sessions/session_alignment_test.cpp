@@ -137,12 +137,12 @@ Pose make_pose(double yaw_deg, const Vec3d& t) {
 }
 
 TEST(SessionAlignment, RecoversTheRigidTransformOfAMovedCopy) {
-  const AlignTestWorld world = make_align_world(7, 200);
-  const std::vector<SessionSubmap> base = make_align_session(world, Pose::Identity(), 0, 200);
+  const AlignTestWorld world = make_align_world(7, 150);
+  const std::vector<SessionSubmap> base = make_align_session(world, Pose::Identity(), 0, 150);
   // The copy: another world frame (turned 37 degrees, moved), re-voxelised in it, cut into
   // submaps at other places (from metre 20).
   const Pose T_other_world = make_pose(37.0, Vec3d(40.0, -25.0, 1.3));
-  const std::vector<SessionSubmap> other = make_align_session(world, T_other_world, 20, 200);
+  const std::vector<SessionSubmap> other = make_align_session(world, T_other_world, 20, 150);
 
   const auto t0 = std::chrono::steady_clock::now();
   const std::clock_t c0 = std::clock();
