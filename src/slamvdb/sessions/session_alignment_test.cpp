@@ -38,8 +38,8 @@ class AlignTestRng {
   uint64_t state_;
 };
 
-constexpr double kRange = 35.0;
-constexpr double kVoxel = 0.25;
+constexpr double kAlignTestRange = 35.0;
+constexpr double kAlignTestVoxel = 0.25;
 
 // `repeat` > 0: look-alike places, a straight route whose ground and objects repeat every
 // `repeat` metres along it.
@@ -53,18 +53,18 @@ AlignTestWorld make_align_world(uint64_t seed, double length, double repeat = 0.
   for (double x = 0; x <= length; x += 1.0) w.route.emplace_back(x, route_y(x), ground(x, route_y(x)));
   // Ground samples jittered off any lattice: samples on the voxel grid's boundaries would all
   // land on one side and shift the map by half a voxel.
-  for (double gx = -kRange; gx <= length + kRange; gx += kVoxel)
-    for (double gy = route_y(gx) - kRange; gy <= route_y(gx) + kRange; gy += kVoxel) {
-      const double x = gx + rng.uniform(-0.5, 0.5) * kVoxel, y = gy + rng.uniform(-0.5, 0.5) * kVoxel;
+  for (double gx = -kAlignTestRange; gx <= length + kAlignTestRange; gx += kAlignTestVoxel)
+    for (double gy = route_y(gx) - kAlignTestRange; gy <= route_y(gx) + kAlignTestRange; gy += kAlignTestVoxel) {
+      const double x = gx + rng.uniform(-0.5, 0.5) * kAlignTestVoxel, y = gy + rng.uniform(-0.5, 0.5) * kAlignTestVoxel;
       w.points.emplace_back(x, y, ground(x, y));
     }
-  const double span = repeat > 0 ? repeat : length + 2 * kRange;
-  const int objects = static_cast<int>(span * 2 * kRange / 120.0);
+  const double span = repeat > 0 ? repeat : length + 2 * kAlignTestRange;
+  const int objects = static_cast<int>(span * 2 * kAlignTestRange / 120.0);
   std::vector<Vec3d> object_points;
   for (int i = 0; i < objects; ++i) {
-    const double x = repeat > 0 ? rng.uniform(0, repeat) : rng.uniform(-kRange, length + kRange);
+    const double x = repeat > 0 ? rng.uniform(0, repeat) : rng.uniform(-kAlignTestRange, length + kAlignTestRange);
     const double side = rng.uniform(0, 1) < 0.5 ? -1.0 : 1.0;
-    const double y = route_y(x) + side * rng.uniform(4.0, kRange);
+    const double y = route_y(x) + side * rng.uniform(4.0, kAlignTestRange);
     const double z0 = ground(x, y);
     const double kind = rng.uniform(0, 1);
     if (kind < 0.4) {  // a box: its sides and top
@@ -96,7 +96,7 @@ AlignTestWorld make_align_world(uint64_t seed, double length, double repeat = 0.
     w.points.insert(w.points.end(), object_points.begin(), object_points.end());
     return w;
   }
-  for (double shift = -std::ceil(kRange / repeat) * repeat; shift <= length + kRange; shift += repeat)
+  for (double shift = -std::ceil(kAlignTestRange / repeat) * repeat; shift <= length + kAlignTestRange; shift += repeat)
     for (const Vec3d& p : object_points) w.points.emplace_back(p.x() + shift, p.y(), p.z());
   return w;
 }
@@ -111,25 +111,25 @@ std::vector<SessionSubmap> make_align_session(const AlignTestWorld& w, const Pos
     SessionSubmap submap;
     submap.id = static_cast<int>(submaps.size());
     const Vec3d start = T_session_world * w.route[s];
-    submap.T_world_submap.translation() = (start / kVoxel).array().floor().matrix() * kVoxel;
+    submap.T_world_submap.translation() = (start / kAlignTestVoxel).array().floor().matrix() * kAlignTestVoxel;
     std::set<std::tuple<int, int, int>> voxels;
     for (const Vec3d& p : w.points) {
-      if (p.x() < w.route[s].x() - kRange || p.x() > w.route[stop].x() + kRange) continue;
+      if (p.x() < w.route[s].x() - kAlignTestRange || p.x() > w.route[stop].x() + kAlignTestRange) continue;
       bool seen = false;
-      for (int k = s; k <= stop && !seen; k += 2) seen = (p - w.route[k]).head<2>().norm() < kRange;
+      for (int k = s; k <= stop && !seen; k += 2) seen = (p - w.route[k]).head<2>().norm() < kAlignTestRange;
       if (!seen) continue;
-      const Vec3d q = (T_session_world * p - submap.T_world_submap.translation()) / kVoxel;
+      const Vec3d q = (T_session_world * p - submap.T_world_submap.translation()) / kAlignTestVoxel;
       voxels.insert({static_cast<int>(std::floor(q.x())), static_cast<int>(std::floor(q.y())),
                      static_cast<int>(std::floor(q.z()))});
     }
     for (const auto& [i, j, k] : voxels)
-      submap.occupied_submap.emplace_back((i + 0.5) * kVoxel, (j + 0.5) * kVoxel, (k + 0.5) * kVoxel);
+      submap.occupied_submap.emplace_back((i + 0.5) * kAlignTestVoxel, (j + 0.5) * kAlignTestVoxel, (k + 0.5) * kAlignTestVoxel);
     submaps.push_back(std::move(submap));
   }
   return submaps;
 }
 
-Pose make_pose(double yaw_deg, const Vec3d& t) {
+Pose make_align_test_pose(double yaw_deg, const Vec3d& t) {
   Pose T = Pose::Identity();
   T.linear() = Eigen::AngleAxisd(yaw_deg * M_PI / 180.0, Vec3d::UnitZ()).toRotationMatrix();
   T.translation() = t;
@@ -141,7 +141,7 @@ TEST(SessionAlignment, RecoversTheRigidTransformOfAMovedCopy) {
   const std::vector<SessionSubmap> base = make_align_session(world, Pose::Identity(), 0, 150);
   // The copy: another world frame (turned 37 degrees, moved), re-voxelised in it, cut into
   // submaps at other places (from metre 20).
-  const Pose T_other_world = make_pose(37.0, Vec3d(40.0, -25.0, 1.3));
+  const Pose T_other_world = make_align_test_pose(37.0, Vec3d(40.0, -25.0, 1.3));
   const std::vector<SessionSubmap> other = make_align_session(world, T_other_world, 20, 150);
 
   const auto t0 = std::chrono::steady_clock::now();
@@ -183,7 +183,7 @@ TEST(SessionAlignment, LookAlikePlacesGiveNoFalseAlignment) {
   // or more periods away. The copy is moved by 12 m along the route, which is no multiple of 30.
   const AlignTestWorld world = make_align_world(11, 180, 30.0);
   const std::vector<SessionSubmap> base = make_align_session(world, Pose::Identity(), 0, 180);
-  const Pose T_other_world = make_pose(-20.0, Vec3d(12.0, 3.0, 0.4));
+  const Pose T_other_world = make_align_test_pose(-20.0, Vec3d(12.0, 3.0, 0.4));
   const std::vector<SessionSubmap> other = make_align_session(world, T_other_world, 30, 180);
   const SessionAlignment result = align_sessions(base, other);
   const Pose expected = T_other_world.inverse();
@@ -202,7 +202,7 @@ TEST(SessionAlignment, RefusesMapsThatDoNotOverlap) {
   // Two drives through different (equally built) terrain: nothing in common.
   const AlignTestWorld world_a = make_align_world(7, 150), world_b = make_align_world(8, 150);
   const std::vector<SessionSubmap> base = make_align_session(world_a, Pose::Identity(), 0, 150);
-  const std::vector<SessionSubmap> other = make_align_session(world_b, make_pose(-20.0, Vec3d(5, 5, 0)), 0, 150);
+  const std::vector<SessionSubmap> other = make_align_session(world_b, make_align_test_pose(-20.0, Vec3d(5, 5, 0)), 0, 150);
   const SessionAlignment result = align_sessions(base, other);
   EXPECT_FALSE(result.aligned);
   EXPECT_FALSE(result.refused.empty());
