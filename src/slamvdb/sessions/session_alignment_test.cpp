@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "slamvdb/core/error.hpp"
+#include "slamvdb/sessions/joint_graph.hpp"
 #include "slamvdb/sessions/session_alignment.hpp"
 
 namespace slamvdb::sessions {
@@ -176,6 +177,41 @@ TEST(SessionAlignment, RecoversTheRigidTransformOfAMovedCopy) {
               result.base_places, result.other_places, result.candidate_pairs, result.verified.size(),
               result.consistent.size(), result.rival_pairs, worst, angle * 180.0 / M_PI, result.sigma_translation,
               result.sigma_rotation * 180.0 / M_PI);
+}
+
+TEST(SessionAlignment, JointGraphRemovesTheOtherSessionsAnchorDrift) {
+  const AlignTestWorld world = make_align_world(7, 150);
+  const std::vector<SessionSubmap> base = make_align_session(world, Pose::Identity(), 0, 150);
+  const Pose T_other_world = make_align_test_pose(37.0, Vec3d(40.0, -25.0, 1.3));
+  std::vector<SessionSubmap> other = make_align_session(world, T_other_world, 20, 150);
+  // The truth, then a drift of the other session's anchors that grows along its drive (each
+  // submap's voxels stay right in its own frame, as with odometry drift).
+  std::vector<Pose> truth;
+  for (std::size_t i = 0; i < other.size(); ++i) {
+    truth.push_back(T_other_world.inverse() * other[i].T_world_submap);
+    const double k = static_cast<double>(i);
+    other[i].T_world_submap = make_align_test_pose(0.2 * k, Vec3d(0.25 * k, -0.15 * k, 0.05 * k)) * other[i].T_world_submap;
+  }
+  const SessionAlignment result = align_sessions(base, other);
+  ASSERT_TRUE(result.aligned) << result.refused;
+  const std::map<int, Pose> corrected =
+      correct_other_anchors(other, result.verified, result.consistent, result.T_base_other);
+  ASSERT_EQ(corrected.size(), other.size());
+  double worst_before = 0.0, worst_after = 0.0, worst_angle_after = 0.0;
+  for (std::size_t i = 0; i < other.size(); ++i) {
+    const Pose before = result.T_base_other * other[i].T_world_submap;
+    const Pose& after = corrected.at(other[i].id);
+    worst_before = std::max(worst_before, (before.translation() - truth[i].translation()).norm());
+    worst_after = std::max(worst_after, (after.translation() - truth[i].translation()).norm());
+    worst_angle_after =
+        std::max(worst_angle_after, Eigen::AngleAxisd((truth[i].inverse() * after).linear()).angle() * 180.0 / M_PI);
+  }
+  EXPECT_GT(worst_before, 0.2) << "the drift is visible after the rigid alignment";
+  EXPECT_LT(worst_after, 0.10);
+  EXPECT_LT(worst_angle_after, 0.5);
+  std::printf("SIMULATED anchor drift: worst anchor error %.3f m after the rigid alignment, %.3f m / %.3f deg after "
+              "the joint graph\n",
+              worst_before, worst_after, worst_angle_after);
 }
 
 TEST(SessionAlignment, LookAlikePlacesGiveNoFalseAlignment) {
