@@ -28,6 +28,10 @@ void AlignmentConfig::validate() const {
   require(min_structure_overlap >= 0.0 && min_structure_overlap <= 1.0, "min structure overlap must be in [0, 1]");
   require(refine_voxel > 0.0, fmt::format("refine voxel {} m must be > 0", refine_voxel));
   consensus.validate();
+  if (prior) {
+    require(prior->radius > 0.0 && prior->max_rotation > 0.0, "the prior's radius and rotation must be > 0");
+    require(prior->T_base_other.matrix().allFinite(), "the prior must be finite");
+  }
 }
 
 const char* to_string(PairRejection reason) {
@@ -37,6 +41,7 @@ const char* to_string(PairRejection reason) {
     case PairRejection::kHighRmse: return "high RMSE";
     case PairRejection::kTooLittleStructure: return "too little structure";
     case PairRejection::kLowStructureOverlap: return "low structure overlap";
+    case PairRejection::kAgainstPrior: return "against the prior";
     case PairRejection::kCount: break;
   }
   return "?";
@@ -84,7 +89,8 @@ double rotation_angle(const Pose& T) { return Eigen::AngleAxisd(T.linear()).angl
 
 // Verifies one candidate pair; fills `pair` and returns nothing when it is accepted.
 std::optional<PairRejection> verify_session_pair(const AlignmentSession& base, std::size_t base_place,
-                                                 const AlignmentSession& other, std::size_t other_place, double yaw,
+                                                 const AlignmentSession& other, std::size_t other_place,
+                                                 const Pose& T_bplace_oplace_guess,
                                                  const AlignmentConfig& config, VerifiedPair& pair) {
   const double voxel = config.places.cloud_voxel;
   const double radius = config.places.scan_context.max_radius;
@@ -99,7 +105,7 @@ std::optional<PairRejection> verify_session_pair(const AlignmentSession& base, s
   // The tests measure against the denser cloud (see max_rmse); ICP does not need it.
   dense.add_points(base.dense_around(base_place, radius + 9.0 * voxel));
   const std::vector<Vec3d> source = other.around(other_place, radius);
-  const std::optional<Pose> aligned = localization::align_coarse_to_fine(source, coarse, fine, yaw_pose(yaw), voxel);
+  const std::optional<Pose> aligned = localization::align_coarse_to_fine(source, coarse, fine, T_bplace_oplace_guess, voxel);
   if (!aligned) return PairRejection::kIcpFailed;
   const localization::AlignmentQuality quality =
       localization::alignment_quality(source, dense, *aligned, config.inlier_distance);
@@ -121,6 +127,13 @@ std::optional<PairRejection> verify_session_pair(const AlignmentSession& base, s
   pair.other_place_world = other.T_world_place(other_place).translation();
   pair.T_base_other = base.T_world_place(base_place) * *aligned * other.T_world_place(other_place).inverse();
   return std::nullopt;
+}
+
+// The loop closer's consistency test with a prior in place of odometry.
+bool agrees_with_prior(const VerifiedPair& pair, const AlignmentPrior& prior) {
+  const Vec3d& x = pair.other_place_world;
+  return (pair.T_base_other * x - prior.T_base_other * x).norm() <= prior.radius &&
+         rotation_angle(prior.T_base_other.inverse() * pair.T_base_other) <= prior.max_rotation;
 }
 
 // Every submap's voxels (thinned to `voxel`) within `radius` (horizontally) of any of the places,
@@ -192,21 +205,43 @@ SessionAlignment align_sessions(const std::vector<SessionSubmap>& base_submaps,
 
   localization::ScanContextDatabase database(config.places.scan_context);
   for (const Place& p : base.places) database.add(p.descriptor);
-  for (std::size_t j = 0; j < other.places.size() && database.size() > 0; ++j) {
+  const auto verify = [&](std::size_t i, std::size_t j, const Pose& guess, double descriptor_distance) {
+    ++result.candidate_pairs;
+    VerifiedPair pair;
+    pair.descriptor_distance = descriptor_distance;
+    std::optional<PairRejection> rejection = verify_session_pair(base, i, other, j, guess, config, pair);
+    if (!rejection && config.prior && !agrees_with_prior(pair, *config.prior)) rejection = PairRejection::kAgainstPrior;
+    if (rejection) {
+      ++result.rejections[static_cast<std::size_t>(*rejection)];
+      return;
+    }
+    result.verified.push_back(pair);
+  };
+  for (std::size_t j = 0; j < other.places.size(); ++j) {
+    if (config.prior) {
+      // The base places nearest to where the prior puts this place. The guess still comes from
+      // the descriptors (the places' centres and the ScanContext yaw): places are modes of the
+      // same surfaces, closer than the prior's metres, and ICP from a guess metres off slides
+      // along the ground.
+      const Pose T_base_oplace = config.prior->T_base_other * other.T_world_place(j);
+      std::vector<std::pair<double, std::size_t>> near;
+      for (std::size_t i = 0; i < base.places.size(); ++i) {
+        const double d = (base.T_world_place(i).translation() - T_base_oplace.translation()).head<2>().norm();
+        if (d <= config.prior->radius) near.push_back({d, i});
+      }
+      std::sort(near.begin(), near.end());
+      for (std::size_t k = 0; k < near.size() && k < config.candidates_per_place; ++k) {
+        const localization::ScanContextMatch match = localization::compare_scan_contexts(
+            other.places[j].descriptor, base.places[near[k].second].descriptor, config.places.scan_context);
+        verify(near[k].second, j, yaw_pose(match.yaw), match.distance);
+      }
+      continue;
+    }
+    if (database.size() == 0) break;
     const auto candidates = database.query(other.places[j].descriptor, database.size(), config.ring_key_neighbours,
                                            config.max_descriptor_distance);
-    for (std::size_t k = 0; k < candidates.size() && k < config.candidates_per_place; ++k) {
-      ++result.candidate_pairs;
-      VerifiedPair pair;
-      pair.descriptor_distance = candidates[k].match.distance;
-      const auto rejection =
-          verify_session_pair(base, candidates[k].index, other, j, candidates[k].match.yaw, config, pair);
-      if (rejection) {
-        ++result.rejections[static_cast<std::size_t>(*rejection)];
-        continue;
-      }
-      result.verified.push_back(pair);
-    }
+    for (std::size_t k = 0; k < candidates.size() && k < config.candidates_per_place; ++k)
+      verify(candidates[k].index, j, yaw_pose(candidates[k].match.yaw), candidates[k].match.distance);
   }
   const std::vector<VerifiedPair>& pairs = result.verified;
   if (pairs.empty()) {

@@ -7,6 +7,7 @@
 // by one ICP over all its places, and is refused when it is too small or a disjoint set of
 // pairs nearly as large agrees on another transform (look-alike places).
 #include <array>
+#include <optional>
 #include <cstddef>
 #include <string>
 #include <vector>
@@ -16,6 +17,16 @@
 #include "slamvdb/sessions/place_descriptors.hpp"
 
 namespace slamvdb::sessions {
+
+// A prior for the alignment (e.g. GNSS: `align --initial x,y,z,yaw`): candidates are the base
+// places within `radius` of where it puts each other place (the guess still from the places'
+// descriptors), and a verified pair farther from it than `radius` or `max_rotation` is rejected. The consensus and
+// its refusals stay: a prior narrows the search, it does not replace evidence.
+struct AlignmentPrior {
+  Pose T_base_other = Pose::Identity();
+  double radius = 10.0;        // metres
+  double max_rotation = 0.52;  // radians (30 degrees)
+};
 
 struct AlignmentConfig {
   PlaceConfig places;
@@ -36,12 +47,21 @@ struct AlignmentConfig {
   std::size_t min_structure_voxels = 50;
   double min_structure_overlap = 0.5;
   ConsensusConfig consensus;
+  std::optional<AlignmentPrior> prior;
   // The winning set is refined at this resolution (the maps' voxel size or coarser): metres.
   double refine_voxel = 0.25;
   void validate() const;  // throws Error naming the setting
 };
 
-enum class PairRejection { kIcpFailed, kLowOverlap, kHighRmse, kTooLittleStructure, kLowStructureOverlap, kCount };
+enum class PairRejection {
+  kIcpFailed,
+  kLowOverlap,
+  kHighRmse,
+  kTooLittleStructure,
+  kLowStructureOverlap,
+  kAgainstPrior,
+  kCount
+};
 const char* to_string(PairRejection reason);
 
 struct SessionAlignment {

@@ -234,6 +234,33 @@ TEST(SessionAlignment, LookAlikePlacesGiveNoFalseAlignment) {
               result.rival_pairs);
 }
 
+TEST(SessionAlignment, APriorResolvesLookAlikePlaces) {
+  // The look-alike terrain again, now with a prior 2.5 m and 1.5 degrees off (GNSS-like; its
+  // error at the far end of the 150 m drive is ~6 m): the candidates are the base places near
+  // where it puts each place, and the alignment is found.
+  const AlignTestWorld world = make_align_world(11, 180, 30.0);
+  const std::vector<SessionSubmap> base = make_align_session(world, Pose::Identity(), 0, 180);
+  // Height moved by whole voxels here: at 0.4 m the two voxel lattices are 0.15 m apart in z and
+  // ICP locks onto the lattice, 0.10 m off (see docs/multi-session-design.md; to fix next). This
+  // test is about the prior.
+  const Pose T_other_world = make_align_test_pose(-20.0, Vec3d(12.0, 3.0, 0.5));
+  const std::vector<SessionSubmap> other = make_align_session(world, T_other_world, 30, 180);
+  const Pose expected = T_other_world.inverse();
+  AlignmentConfig config;
+  config.prior = AlignmentPrior{make_align_test_pose(1.5, Vec3d(2.0, -1.5, 0.0)) * expected, 10.0, 0.52};
+  const SessionAlignment result = align_sessions(base, other, config);
+  for (std::size_t r = 0; r < result.rejections.size(); ++r)
+    std::printf("rejected (%s): %zu\n", to_string(static_cast<PairRejection>(r)), result.rejections[r]);
+  ASSERT_TRUE(result.aligned) << result.refused;
+  const Vec3d x = T_other_world * world.route[world.route.size() / 2];
+  EXPECT_LT((result.T_base_other * x - expected * x).norm(), 0.10)
+      << (result.T_base_other * x - expected * x).transpose();
+  EXPECT_LT(Eigen::AngleAxisd((expected.inverse() * result.T_base_other).linear()).angle() * 180.0 / M_PI, 0.5);
+  std::printf("SIMULATED look-alikes with a prior: %zu candidates, %zu verified, %zu consistent, error %.3f m\n",
+              result.candidate_pairs, result.verified.size(), result.consistent.size(),
+              (result.T_base_other * x - expected * x).norm());
+}
+
 TEST(SessionAlignment, RefusesMapsThatDoNotOverlap) {
   // Two drives through different (equally built) terrain: nothing in common.
   const AlignTestWorld world_a = make_align_world(7, 150), world_b = make_align_world(8, 150);
