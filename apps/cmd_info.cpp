@@ -7,10 +7,10 @@
 #include <cmath>
 #include <memory>
 #include <optional>
-#include <nlohmann/json.hpp>
 
 #include "command_registry.hpp"
 #include "slamvdb/core/text_escape.hpp"
+#include "slamvdb/io/map_info_json.hpp"
 #include "slamvdb/store/map_store.hpp"
 
 namespace slamvdb::cli::cmd_info {
@@ -22,88 +22,12 @@ struct Options {
   bool check = false;
 };
 
-// What only a full load can tell: the map read through the global index, in the world frame.
-struct WorldFigures {
-  std::size_t index_cells = 0, index_cells_shared = 0, occupied_world_cells = 0;
-};
-
-WorldFigures read_world(const std::string& path) {
-  const SemanticMap map = load_map(path);
-  WorldFigures w;
-  w.index_cells = map.num_index_cells();
-  map.read_index([&](const GlobalIndex& index) {
-    for (std::size_t i = 0; i < index.size(); ++i) w.index_cells_shared += index.refs(i).size() > 1;
-  });
-  const float threshold = map.params().occupancy.occupied_threshold;
-  for (const WorldOccupancyCell& c : map.world_occupancy()) w.occupied_world_cells += c.log_odds >= threshold;
-  return w;
-}
-
-nlohmann::json time_range_json(const TimeRange& t) {
-  if (t.empty()) return nullptr;
-  return {t.begin, t.end};
-}
-
-// Roll, pitch, yaw (ZYX convention) in degrees; "+ 0.0" turns -0 into 0 for printing.
-Eigen::Vector3d rpy_degrees(const Pose& T) {
-  const Eigen::Matrix3d R = T.linear();
-  const double rad = 180.0 / M_PI;
-  return Eigen::Vector3d(std::atan2(R(2, 1), R(2, 2)), std::asin(std::clamp(-R(2, 0), -1.0, 1.0)),
-                         std::atan2(R(1, 0), R(0, 0))) * rad +
-         Eigen::Vector3d::Zero();
-}
-
-double per_voxel(uint64_t bytes, std::size_t voxels) { return voxels ? static_cast<double>(bytes) / voxels : 0.0; }
-
-nlohmann::json to_json(const std::string& path, const MapFileSummary& s, const std::optional<WorldFigures>& world) {
-  nlohmann::json submaps = nlohmann::json::array();
-  for (const SubmapSummary& sm : s.submaps) {
-    const Pose& T = sm.info.T_world_submap;
-    const Eigen::Matrix4d m = T.matrix();
-    nlohmann::json rows = nlohmann::json::array();
-    for (int r = 0; r < 4; ++r) rows.push_back({m(r, 0), m(r, 1), m(r, 2), m(r, 3)});
-    const Eigen::Vector3d t = T.translation(), rpy = rpy_degrees(T);
-    submaps.push_back({{"id", sm.info.id},
-                       {"T_world_submap", rows},
-                       {"translation", {t.x(), t.y(), t.z()}},
-                       {"rpy_deg", {rpy.x(), rpy.y(), rpy.z()}},
-                       {"time_range", time_range_json(sm.info.time_range)},
-                       {"path_length", sm.info.path_length},
-                       {"blocks", sm.blocks},
-                       {"known_voxels", sm.known_voxels},
-                       {"occupied_voxels", sm.occupied_voxels},
-                       {"semantic_voxels", sm.semantic_voxels}});
-  }
-  nlohmann::json j = {{"path", path},
-          {"format_version", s.format_version},
-          {"voxels", {{"known", s.known_voxels}, {"occupied", s.occupied_voxels}, {"semantic", s.semantic_voxels}}},
-          {"bytes",
-           {{"file", s.file_bytes},
-            {"in_memory_at_save", s.memory_bytes ? nlohmann::json(s.memory_bytes) : nlohmann::json()},
-            {"occupancy_payload", s.occupancy_payload_bytes},
-            {"semantic_payload", s.semantic_payload_bytes},
-            {"semantic_payload_per_semantic_voxel", per_voxel(s.semantic_payload_bytes, s.semantic_voxels)},
-            {"file_per_semantic_voxel", per_voxel(s.file_bytes, s.semantic_voxels)}}},
-          {"voxel_size", s.params.occupancy.voxel_size},
-          {"embedding_dim", s.params.semantic.dim},
-          {"precision", std::string(to_string(s.params.semantic.precision))},
-          {"model_id", s.info.model_id},
-          {"ontology", s.info.ontology},
-          {"source", s.info.source},
-          {"config", s.info.config},
-          {"submap_length", s.params.submap_length},
-          {"submaps", submaps}};
-  if (world)
-    j["check"] = {{"ok", true},
-                  {"index_cells", world->index_cells},
-                  {"index_cells_in_several_submaps", world->index_cells_shared},
-                  {"occupied_world_cells", world->occupied_world_cells}};
-  return j;
-}
+// The figures of a full load (info --check), through the same library function as GET /api/info.
+MapWorldFigures read_world(const std::string& path) { return map_world_figures(load_map(path)); }
 
 std::string megabytes(uint64_t bytes) { return fmt::format("{:.1f} MB", static_cast<double>(bytes) / 1e6); }
 
-void print_text(const std::string& path, const MapFileSummary& s, const std::optional<WorldFigures>& world) {
+void print_text(const std::string& path, const MapFileSummary& s, const std::optional<MapWorldFigures>& world) {
   fmt::print("map        {} (format version {})\n", path, s.format_version);
   fmt::print("voxels     {} known, {} occupied (voxel size {} m)\n", s.known_voxels, s.occupied_voxels,
              s.params.occupancy.voxel_size);
@@ -129,8 +53,8 @@ void print_text(const std::string& path, const MapFileSummary& s, const std::opt
   fmt::print("           on disk: occupancy {}, semantics {}", megabytes(s.occupancy_payload_bytes),
              megabytes(s.semantic_payload_bytes));
   if (s.semantic_voxels)
-    fmt::print(" = {:.0f} B per semantic voxel (whole file: {:.0f} B)", per_voxel(s.semantic_payload_bytes, s.semantic_voxels),
-               per_voxel(s.file_bytes, s.semantic_voxels));
+    fmt::print(" = {:.0f} B per semantic voxel (whole file: {:.0f} B)", bytes_per_voxel(s.semantic_payload_bytes, s.semantic_voxels),
+               bytes_per_voxel(s.file_bytes, s.semantic_voxels));
   fmt::print("\nsubmaps    {} (a new one every {} of path)\n", s.submaps.size(),
              s.params.submap_length > 0 ? fmt::format("{:g} m", s.params.submap_length) : std::string("... never"));
   for (const SubmapSummary& sm : s.submaps) {
@@ -160,9 +84,9 @@ void add(CLI::App& root) {
                 "keys in range), then read the map through the global index");
   cmd->callback([opt] {
     const MapFileSummary s = read_map_summary(opt->map);
-    std::optional<WorldFigures> world;
+    std::optional<MapWorldFigures> world;
     if (opt->check) world = read_world(opt->map);
-    if (opt->json) fmt::print("{}\n", to_json(opt->map, s, world).dump(2, ' ', true, nlohmann::json::error_handler_t::replace));
+    if (opt->json) fmt::print("{}\n", map_info_json(opt->map, s, world).dump(2, ' ', true, nlohmann::json::error_handler_t::replace));
     else print_text(opt->map, s, world);
   });
 }

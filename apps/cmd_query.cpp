@@ -8,6 +8,7 @@
 #include "feature_options.hpp"
 #include "io_options.hpp"
 #include "option_checks.hpp"
+#include "text_encoder_option.hpp"
 #include "slamvdb/core/csv.hpp"
 #include "slamvdb/core/point_text.hpp"
 #include "slamvdb/inference/simulated_encoders.hpp"
@@ -18,13 +19,16 @@
 #include "slamvdb/io/map_pictures.hpp"
 #include "slamvdb/io/npy.hpp"
 #include "slamvdb/query/map_query.hpp"
+#include "slamvdb/query/query_region.hpp"
+#include "slamvdb/query/query_terms.hpp"
 #include "slamvdb/store/map_store.hpp"
 
 namespace slamvdb::cli::cmd_query {
 namespace {
 
 struct Options {
-  std::string map, queries, output, at_csv, text_model, image_model, ply, png;
+  std::string map, queries, output, at_csv, text_model, image_model, ply, png, bbox, near;
+  double radius = 0;  // 0: not given (the option refuses 0)
   std::vector<std::string> text, not_text, classes, not_classes, images, at, vectors, not_vectors;
   std::size_t top_k = 100;
   float threshold = -std::numeric_limits<float>::infinity();
@@ -53,6 +57,23 @@ std::vector<Vec3d> read_points(const Options& opt) {
   return points;
 }
 
+// --bbox, --near and --radius as the library's region (query/query_region.hpp, the same one
+// /api/query's "region" makes); none of them: no region. A bad one is a usage error naming it.
+std::optional<QueryRegion> region_of(const Options& opt) {
+  if (opt.bbox.empty() && opt.near.empty() && !(opt.radius > 0)) return std::nullopt;
+  try {
+    std::optional<std::vector<double>> bbox, near;
+    if (!opt.bbox.empty()) bbox = parse_numbers(opt.bbox, "--bbox", 6, 6, "xmin,ymin,zmin,xmax,ymax,zmax");
+    if (!opt.near.empty()) near = parse_numbers(opt.near, "--near", 2, 3, "x,y or x,y,z");
+    return make_region(bbox ? std::optional<std::span<const double>>(*bbox) : std::nullopt,
+                       near ? std::optional<std::span<const double>>(*near) : std::nullopt,
+                       opt.radius > 0 ? std::optional<double>(opt.radius) : std::nullopt,
+                       {"--bbox", "--near", "--radius"});
+  } catch (const Error& e) {
+    usage_error(e.what());
+  }
+}
+
 // The embedding space must be the map's: an encoder of another space answers nothing meaningful.
 void check_space(const std::string& what, const std::string& model_id, const SemanticMap& map, bool ignore) {
   if (ignore || model_id == map.info().model_id) return;
@@ -63,40 +84,23 @@ void check_space(const std::string& what, const std::string& model_id, const Sem
 
 Eigen::VectorXf to_vector(const std::vector<float>& v) { return Eigen::Map<const Eigen::VectorXf>(v.data(), v.size()); }
 
+// The question's terms as the library takes them (query/query_terms.hpp, shared with `slamvdb serve`):
+// .npy vectors and images are embedded here, texts and classes by build_query_vector.
 Eigen::VectorXf build_query(const Options& opt, const SemanticMap& map) {
-  std::vector<Eigen::VectorXf> positive, negative;
-  if (!opt.text.empty() || !opt.not_text.empty()) {
-    std::unique_ptr<TextEncoder> encoder;
-    if (!opt.text_model.empty()) {
-#if SLAMVDB_WITH_TORCH
-      encoder = std::make_unique<TorchTextEncoder>(opt.text_model);
-#else
-      throw Error("this slamvdb was built without TorchScript support (SLAMVDB_WITH_TORCH=OFF)");
-#endif
-    } else {
-      SimulatedEncoderConfig sim;
-      sim.dim = map.params().semantic.dim;
-      sim.seed = opt.sim_seed;
-      sim.text_gap = opt.sim_text_gap;
-      encoder = std::make_unique<SimulatedTextEncoder>(sim);
-      spdlog::warn("text is embedded by the SIMULATED text encoder {} (use --text-model for CLIP)", encoder->model_id());
-    }
+  QueryTerms terms;
+  terms.text = opt.text;
+  terms.not_text = opt.not_text;
+  terms.classes = opt.classes;
+  terms.not_classes = opt.not_classes;
+  std::unique_ptr<TextEncoder> encoder;
+  TextEmbedder embed_text;
+  if (terms.uses_text()) {
+    encoder = open_text_encoder(opt.text_model, map.params().semantic.dim, opt.sim_seed, opt.sim_text_gap);
     check_space("the text encoder", encoder->model_id(), map, opt.ignore_model_id);
-    for (const auto& t : opt.text) positive.push_back(to_vector(encoder->encode(t)));
-    for (const auto& t : opt.not_text) negative.push_back(to_vector(encoder->encode(t)));
+    embed_text = [&encoder](std::string_view text) -> Eigen::VectorXf { return to_vector(encoder->encode(text)); };
   }
-  if (!opt.classes.empty() || !opt.not_classes.empty()) {
-    const QuerySet queries = load_query_set(opt.queries);
-    check_compatible(queries, map.params().semantic.dim, map.info().model_id,
-                     opt.ignore_model_id ? ModelIdCheck::kIgnore : ModelIdCheck::kRequireMatch);
-    auto row = [&](const std::string& name) -> Eigen::VectorXf {
-      const auto k = queries.find(name);
-      if (!k) throw Error(fmt::format("{} has no class '{}'", opt.queries, name));
-      return queries.vectors.row(*k).transpose();
-    };
-    for (const auto& c : opt.classes) positive.push_back(row(c));
-    for (const auto& c : opt.not_classes) negative.push_back(row(c));
-  }
+  std::optional<QuerySet> queries;
+  if (terms.uses_classes()) queries = load_query_set(opt.queries);
   const auto read_vectors = [&](const std::vector<std::string>& files, std::vector<Eigen::VectorXf>& into) {
     for (const auto& file : files)
       for (const std::vector<float>& v : read_npy_vectors(file)) {
@@ -108,14 +112,14 @@ Eigen::VectorXf build_query(const Options& opt, const SemanticMap& map) {
         into.push_back(to_vector(v));
       }
   };
-  read_vectors(opt.vectors, positive);
-  read_vectors(opt.not_vectors, negative);
+  read_vectors(opt.vectors, terms.vectors);
+  read_vectors(opt.not_vectors, terms.not_vectors);
   if (!opt.images.empty()) {
-    std::unique_ptr<ImageEncoder> encoder;
+    std::unique_ptr<ImageEncoder> image_encoder;
     bool labels = false;
     if (!opt.image_model.empty()) {
 #if SLAMVDB_WITH_TORCH
-      encoder = std::make_unique<TorchImageEncoder>(opt.image_model);
+      image_encoder = std::make_unique<TorchImageEncoder>(opt.image_model);
 #else
       throw Error("this slamvdb was built without TorchScript support (SLAMVDB_WITH_TORCH=OFF)");
 #endif
@@ -123,19 +127,24 @@ Eigen::VectorXf build_query(const Options& opt, const SemanticMap& map) {
       SimulatedEncoderConfig sim;
       sim.dim = map.params().semantic.dim;
       sim.seed = opt.sim_seed;
-      encoder = std::make_unique<SimulatedImageEncoder>(sim);
+      image_encoder = std::make_unique<SimulatedImageEncoder>(sim);
       labels = true;
       spdlog::warn("--image is embedded by the SIMULATED image encoder from its 2D label image (use --image-model "
                    "for a network on RGB)");
     }
-    check_space("the image encoder", encoder->model_id(), map, opt.ignore_model_id);
+    check_space("the image encoder", image_encoder->model_id(), map, opt.ignore_model_id);
     for (const auto& file : opt.images) {
       ImageRecord rec;
       (labels ? rec.labels : rec.rgb) = file;
-      positive.push_back(to_vector(encoder->encode(load_image_frame(rec, !labels, labels))));
+      terms.vectors.push_back(to_vector(image_encoder->encode(load_image_frame(rec, !labels, labels))));
     }
   }
-  return composite_query(positive, negative);
+  QueryTermSources sources;
+  sources.embed_text = encoder ? &embed_text : nullptr;
+  sources.queries = queries ? &*queries : nullptr;
+  sources.queries_name = opt.queries;
+  sources.model_check = opt.ignore_model_id ? ModelIdCheck::kIgnore : ModelIdCheck::kRequireMatch;
+  return build_query_vector({map.params().semantic.dim, map.info().model_id}, terms, sources);
 }
 
 // The output's format from its extension: .csv, .ply, .png (+ .yaml) or .html; "" without output.
@@ -206,6 +215,8 @@ void run(const Options& opt) {
     throw CLI::ValidationError("--output", "point look-ups are written as .csv");
   if ((!opt.classes.empty() || !opt.not_classes.empty()) && opt.queries.empty())
     throw CLI::ValidationError("--class", "needs --queries QUERIES.json");
+  const std::optional<QueryRegion> region = region_of(opt);
+  if (spatial && region) throw CLI::ValidationError("--bbox", "--bbox and --near limit a similarity query, not --at points");
   const std::vector<Vec3d> points = spatial ? read_points(opt) : std::vector<Vec3d>{};
   const SemanticMap map = load_map(opt.map);
   if (spatial) return run_points(opt, map, points);
@@ -214,6 +225,7 @@ void run(const Options& opt) {
   SearchOptions search;
   search.top_k = opt.top_k;
   search.threshold = opt.threshold;
+  search.region = region;
   auto results = similarity_search(map, std::span<const float>(q.data(), static_cast<std::size_t>(q.size())), search);
   // With a query set, each result also gets its class and confidence (as query --at gives them).
   std::optional<QuerySet> queries;
@@ -224,8 +236,9 @@ void run(const Options& opt) {
     classify_results(map, *queries, results, options,
                      opt.ignore_model_id ? ModelIdCheck::kIgnore : ModelIdCheck::kRequireMatch);
   }
-  fmt::print("{} of {} semantic voxels{}:\n", results.size(), map.num_index_cells(),
-             opt.top_k ? fmt::format(" (top {})", opt.top_k) : std::string());
+  fmt::print("{} of {} semantic voxels{}{}:\n", results.size(), map.num_index_cells(),
+             opt.top_k ? fmt::format(" (top {})", opt.top_k) : std::string(),
+             region ? " in the region (--bbox / --near)" : "");
   fmt::print("| rank | x | y | z | cosine | observations |{}\n|---:|---:|---:|---:|---:|---:|{}\n",
              queries ? " class | confidence |" : "", queries ? "---|---:|" : "");
   for (std::size_t i = 0; i < results.size() && i < 10; ++i) {
@@ -328,6 +341,13 @@ void add(CLI::App& root) {
       ->check(integer_range(0, bounds::kMaxCount));
   cmd->add_option("--threshold", opt->threshold, "Keep voxels whose cosine similarity is at least this")
       ->check(finite_range(-1.0, 1.0));
+  cmd->add_option("--bbox", opt->bbox,
+                  "Only voxels whose centre is in this world box: xmin,ymin,zmin,xmax,ymax,zmax (submaps outside it "
+                  "are not read; with --near, the voxel must be in both)");
+  cmd->add_option("--near", opt->near,
+                  "Only voxels within --radius of this world point: x,y,z (a ball) or x,y (a vertical cylinder: "
+                  "distance in x and y, any height)");
+  cmd->add_option("--radius", opt->radius, "Radius of --near in metres")->check(finite_range(0.0, 1e7, true));
   cmd->add_option("--at", opt->at,
                   "A world point to look up (repeatable): x,y,z or \"x y z\", decimal numbers with '.' (no hex, nan, "
                   "inf or trailing text)");
@@ -349,6 +369,7 @@ void add(CLI::App& root) {
   cmd->add_option("--png", opt->png, "Also write the heat map from above (PNG + map_server YAML)");
   add_option_checks(cmd, [opt] {
     output_format(opt->output);
+    region_of(*opt);
     if (!opt->ply.empty() && output_format(opt->ply) != ".ply") usage_error("--ply " + opt->ply + ": not a .ply name");
     if (!opt->png.empty() && output_format(opt->png) != ".png") usage_error("--png " + opt->png + ": not a .png name");
   });

@@ -29,6 +29,7 @@ inline const std::vector<CommandOverviewLine>& command_overview() {
       {"Ask", "classify", "Label every semantic voxel with a terrain class"},
       {"Ask", "train-queries", "Train one query vector per class on labelled images"},
       {"Ask", "import-queries", "Make a query set from a folder of CLASS.csv vectors"},
+      {"Ask", "serve", "Serve a map over HTTP: a JSON API for planners and scripts"},
       {"Look", "inspect", "What a recording or dataset holds, and which topics map uses"},
       {"Look", "info", "What a map file holds and how it was made"},
       {"Look", "export", "Write a map as .ply, .pcd, .png, .csv, .npy or .html"},

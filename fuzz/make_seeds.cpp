@@ -131,6 +131,9 @@ int main(int argc, char** argv) {
   seed("poses_tum", "kitti", "1 0 0 0 0 1 0 0 0 0 1 0\n");
   seed("points", "commas", "x,y,z\n1.5,-2,0.25\n\"3\",\"4\",\"5e2\"\n");
   seed("points", "blanks", "\xEF\xBB\xBF" "10 20 30\r\n-5.625\t15.125\t-1.875\r\n\n");
+  seed("server_requests", "text", R"({"text": ["tall grass", "dirt"], "not": "puddle", "top_k": 7})");
+  seed("server_requests", "vector", R"({"vector": [[1, 0, 0, 0], [0, 1, 0.5, 0]], "not_vector": [0, 0, 1, 0], "top_k": 0, "threshold": 0.25, "exact": true})");
+  seed("server_requests", "class", R"({"class": "smooth", "not_class": ["rough"], "threshold": -0.5})");
   seed("ontology", "coarse", file_bytes(fs::path(SLAMVDB_SOURCE_DIR) / "data/ontology/rellis3d_coarse.yaml"));
   seed("ontology", "fine", file_bytes(fs::path(SLAMVDB_SOURCE_DIR) / "data/ontology/rellis3d_fine.yaml"));
 

@@ -20,11 +20,14 @@ PACKAGES=(
   libspdlog-dev libfmt-dev  # logging
   libabsl-dev            # flat hash maps (voxel blocks, semantic index)
   libcli11-dev           # CLI
-  nlohmann-json3-dev     # manifests, metadata
+  nlohmann-json3-dev     # manifests, metadata, the server's JSON
+  libcpp-httplib-dev libssl-dev  # `slamvdb serve`: HTTP server (Debian builds it with OpenSSL: optional TLS)
+  openssl                # the serve TLS test makes a self-signed certificate
   libyaml-cpp-dev        # transforms.yaml, ontology
   zlib1g-dev             # CLIP merge list (.gz)
   libicu-dev             # Unicode categories, case folding, NFC for the CLIP tokenizer
   python3-regex          # test oracle for the CLIP tokenizer
+  python3-yaml           # the serve test reads docs/openapi.yaml
   libgtest-dev libgmock-dev  # tests
   libbenchmark-dev       # benchmarks
   liboctomap-dev         # side-by-side occupancy benchmark baseline

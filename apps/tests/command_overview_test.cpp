@@ -22,7 +22,7 @@ TEST(CliConventions, TopLevelHelpListsTheWorkflowOneLineEach) {
       "synth", "convert", "demo",  // make data
       "map", "slam",             // map
       "odometry",                // localize
-      "query", "classify", "train-queries", "import-queries",  // ask
+      "query", "classify", "train-queries", "import-queries", "serve",  // ask
       "inspect", "info", "export",  // look
       "eval", "eval-images", "eval-trajectory",  // evaluate
       "tokenize", "embed-text", "segment"};      // tools

@@ -167,6 +167,8 @@ class ConfigEquivalence : public ::testing::Test {
         {"--images", {"0:3", "3:0"}},
         {"--part", {"0.5:1"}},
         {"--at", {"1,2,3"}},
+        {"--bbox", {"0,0,0,1,1,1", "0,0,2,1,1,1"}},
+        {"--near", {"1,2", "1,2,3,4"}},
         {"--text", {"grass"}},
         {"--not", {"tree"}},
         {"--class", {"rough"}},
@@ -194,6 +196,10 @@ class ConfigEquivalence : public ::testing::Test {
       for (Sample& s : samples) s.companions = {"--simulated"};
     if (cmd == "synth" && (name == "--compression" || name == "--chunk-size"))
       for (Sample& s : samples) s.companions = {"--format=mcap"};
+    if (cmd == "query" && (name == "--near" || name == "--radius"))  // the two go together
+      for (Sample& s : samples) s.companions = {name == "--near" ? "--radius=2" : "--near=1,2"};
+    if (cmd == "serve" && (name == "--tls-cert" || name == "--tls-key"))  // the two go together
+      for (Sample& s : samples) s.companions = {(name == "--tls-cert" ? "--tls-key=" : "--tls-cert=") + file.string()};
     if (o->get_expected_max() > 1 && !samples.empty())  // a repeatable option: two values at once
       samples.push_back({{samples.front().values.front(), samples.back().values.front()}, {}});
     return samples;

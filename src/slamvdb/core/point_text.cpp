@@ -114,6 +114,29 @@ Vec3d parse_point(std::string_view text, std::string_view where) {
   return *point;
 }
 
+std::vector<double> parse_numbers(std::string_view text, std::string_view where, std::size_t min_count,
+                                  std::size_t max_count, std::string_view shape) {
+  namespace d = point_text_detail;
+  const std::vector<std::string_view> fields = d::split_fields(text);
+  const auto refuse = [&](const std::string& problem) {
+    throw Error(fmt::format("{}: '{}' is not {}: {}", where, escape_control(text, 80), shape, problem));
+  };
+  if (fields.size() < min_count || fields.size() > max_count)
+    refuse(fields.empty() ? std::string("it is empty")
+                          : fmt::format("{} field{}, expected {} separated by commas or by blanks", fields.size(),
+                                        fields.size() == 1 ? "" : "s",
+                                        min_count == max_count ? fmt::format("{}", min_count)
+                                                               : fmt::format("{} to {}", min_count, max_count)));
+  std::vector<double> out;
+  std::string problem;
+  for (const std::string_view field : fields) {
+    const auto v = d::parse_number(field, problem);
+    if (!v) refuse(problem);
+    out.push_back(v.value_or(0.0));
+  }
+  return out;
+}
+
 PointsText parse_points_text(std::string_view text, std::string_view source) {
   namespace d = point_text_detail;
   PointsText out;

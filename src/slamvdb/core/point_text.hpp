@@ -23,6 +23,12 @@ namespace slamvdb {
 // The point in `text`; throws Error "<where>: '<text>' is not x,y,z: <reason>".
 Vec3d parse_point(std::string_view text, std::string_view where);
 
+// min_count..max_count numbers written as a point's are (commas or blanks, the same strict
+// numbers): a box "xmin,ymin,zmin,xmax,ymax,zmax", a centre "x,y" or "x,y,z". Throws Error
+// "<where>: '<text>' is not <shape>: <reason>".
+std::vector<double> parse_numbers(std::string_view text, std::string_view where, std::size_t min_count,
+                                  std::size_t max_count, std::string_view shape);
+
 struct PointsText {
   std::vector<Vec3d> points;
   bool header = false;          // the first line was a header (x,y,z) and is not a point

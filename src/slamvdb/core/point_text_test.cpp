@@ -58,6 +58,17 @@ struct DecimalComma : std::numpunct<char> {
   char do_decimal_point() const override { return ','; }
 };
 
+TEST(PointText, NumberListsReadLikePointsWithTheirOwnCount) {
+  EXPECT_EQ(parse_numbers("1,2", "--near", 2, 3, "x,y[,z]"), (std::vector<double>{1, 2}));
+  EXPECT_EQ(parse_numbers("-1 2.5 3e1", "--near", 2, 3, "x,y[,z]"), (std::vector<double>{-1, 2.5, 30}));
+  EXPECT_EQ(parse_numbers("0,0,0,1,1,1", "--bbox", 6, 6, "a box").size(), 6u);
+  const std::string few = error_of([] { parse_numbers("1", "--near", 2, 3, "x,y[,z]"); });
+  EXPECT_NE(few.find("--near: '1' is not x,y[,z]: 1 field, expected 2 to 3"), std::string::npos) << few;
+  const std::string bad = error_of([] { parse_numbers("0,0,0,1,1,nan", "--bbox", 6, 6, "a box"); });
+  EXPECT_NE(bad.find("'nan' is not"), std::string::npos) << bad;
+  EXPECT_NE(bad.find("--bbox"), std::string::npos) << bad;
+}
+
 TEST(PointText, TheLocaleDoesNotChangeTheDecimalMark) {
   const std::locale before = std::locale::global(std::locale(std::locale::classic(), new DecimalComma));
   const Vec3d p = parse_point("1.5 -2.25 3", "--at");

@@ -53,8 +53,12 @@ void GlobalIndex::erase(const IndexCellKey& cell, EntryRef ref) {
 }
 
 void GlobalIndex::bin_all(uint32_t slot) {
-  const Binding& b = bindings_[slot];
-  b.layer->for_each([&](SemanticLayer::Handle h) { insert(cell_of_entry(b, h), {slot, h}); });
+  Binding& b = bindings_[slot];
+  b.centres_submap.setEmpty();
+  b.layer->for_each([&](SemanticLayer::Handle h) {
+    b.centres_submap.extend(center_of_key(b.layer->key_of(h), b.voxel_size));
+    insert(cell_of_entry(b, h), {slot, h});
+  });
 }
 
 void GlobalIndex::unbin_all(uint32_t slot) {
@@ -67,7 +71,7 @@ void GlobalIndex::add_submap(uint32_t slot, const SemanticLayer& layer, double v
     throw Error(fmt::format("a submap with {}-d embeddings cannot join a {}-d index", layer.dim(), dim_));
   if (slot >= bindings_.size()) bindings_.resize(slot + 1);
   if (bindings_[slot].layer) throw Error(fmt::format("submap slot {} is already in the index", slot));
-  bindings_[slot] = {&layer, voxel_size, T_world_submap};
+  bindings_[slot] = {&layer, voxel_size, T_world_submap, {}};  // bin_all sets the bounds
   cell_slot_.reserve(cell_slot_.size() + layer.size());
   bin_all(slot);
 }
@@ -87,12 +91,15 @@ void GlobalIndex::move_submap(uint32_t slot, const Pose& T_world_submap) {
 
 void GlobalIndex::apply_changes(uint32_t slot, const SemanticLayer::Changes& changes) {
   if (slot >= bindings_.size() || !bindings_[slot].layer) return;
-  const Binding& b = bindings_[slot];
+  Binding& b = bindings_[slot];
   // Erased first: an entry added and erased within one log is then skipped below (count 0).
   for (const auto& [h, key] : changes.erased)
     erase(cell_of(b.T_world_submap * center_of_key(key, b.voxel_size)), {slot, h});
   for (const SemanticLayer::Handle h : changes.added)
-    if (b.layer->count_of(h) > 0) insert(cell_of_entry(b, h), {slot, h});
+    if (b.layer->count_of(h) > 0) {
+      b.centres_submap.extend(center_of_key(b.layer->key_of(h), b.voxel_size));
+      insert(cell_of_entry(b, h), {slot, h});
+    }
 }
 
 std::size_t GlobalIndex::best_ref(const Cell& c) const {

@@ -13,6 +13,7 @@
 #include <absl/container/flat_hash_map.h>
 #include <absl/container/inlined_vector.h>
 
+#include <Eigen/Geometry>
 #include <cstdint>
 #include <vector>
 
@@ -90,6 +91,17 @@ class GlobalIndex {
   std::span<const EntryRef> refs(std::size_t i) const { return {cells_[i].refs.data(), cells_[i].refs.size()}; }
   const SemanticLayer* layer(uint32_t slot) const { return slot < bindings_.size() ? bindings_[slot].layer : nullptr; }
 
+  // The world box that holds the centre of every cell the submap's entries are binned in: its
+  // entries' voxel centres at T_world_submap, grown by a cell. Only grows while the submap is
+  // bound (an erased entry leaves it as large; a move or re-binning recomputes it), so it may be
+  // larger than the submap but never smaller. Empty for a slot not bound or a layer without entries.
+  Eigen::AlignedBox3d submap_bounds_world(uint32_t slot) const;
+  // Positions (0..size(), ascending) of the cells whose centre lies in `box_world` (closed box).
+  // Submaps whose world bounds miss the box are never read; the others are read entry by entry,
+  // so the cost is what they hold, not the index's size (a scan of the cells instead when they
+  // hold more entries than the index has cells). `submaps_read` receives how many were read.
+  std::vector<std::size_t> cells_in_box(const Eigen::AlignedBox3d& box_world, std::size_t* submaps_read = nullptr) const;
+
   std::size_t memory_bytes() const;
 
  private:
@@ -101,6 +113,7 @@ class GlobalIndex {
     const SemanticLayer* layer = nullptr;
     double voxel_size = 0;
     Pose T_world_submap = Pose::Identity();  // the pose its entries are binned at
+    Eigen::AlignedBox3d centres_submap;       // of its entries' voxel centres, submap frame (grows only)
   };
   IndexCellKey cell_of_entry(const Binding& b, SemanticLayer::Handle h) const;
   void insert(const IndexCellKey& cell, EntryRef ref);

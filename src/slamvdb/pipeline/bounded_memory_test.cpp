@@ -54,8 +54,22 @@ TEST(BoundedMemory, LongDrivesKeepOnlyNearSubmapsInMemoryByDefault) {
   EXPECT_LE(peak, submaps / 2) << mapped.output;  // bounded: the near part of the loop only
   EXPECT_GE(left, submaps / 2) << mapped.output;  // each far submap left memory at least once
   // The file holds every submap, and they load back and check out.
-  const auto check = run_command(cli + " info " + map + " --check 2>&1", 600);
-  EXPECT_EQ(check.exit_code, 0) << check.output;
+  if (!testing::sanitizer_test_scale()) {
+    const auto check = run_command(cli + " info " + map + " --check 2>&1", 600);
+    EXPECT_EQ(check.exit_code, 0) << check.output;
+  } else {
+    // Under the sanitizers, --check's validation without its world figures (the occupancy of all
+    // submaps combined, most of a 77-s check under ASan; `info --check` itself runs in
+    // MapValidationTest): `info`, then load_map, which reads and validates every row as --check does.
+    const auto info = run_command(cli + " info " + map + " 2>&1", 600);
+    EXPECT_EQ(info.exit_code, 0) << info.output;
+    const SemanticMap loaded = load_map(tmp.path / "m.svdb");
+    EXPECT_EQ(static_cast<long>(loaded.num_submaps()), submaps);
+    std::size_t known = 0;
+    for (const SubmapInfo& s : loaded.submaps())
+      loaded.read_submap(s.id, [&](const Submap& sm) { known += sm.voxels().occupancy().num_known_voxels(); });
+    EXPECT_EQ(known, saved.known_voxels);
+  }
   static_assert(kDefaultUnloadRadius > 0, "the default bounds memory");
 }
 

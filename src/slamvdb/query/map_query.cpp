@@ -69,14 +69,24 @@ std::vector<ScoredCell> similarity_search(const SemanticMap& map, std::span<cons
   const Eigen::VectorXf q = *unit_vector(query);  // no float overflow for huge components
   std::vector<ScoredCell> out;
   map.read_index([&](const GlobalIndex& index) {
+    // With a region, the cells in it (read from the submaps whose bounds meet it), else all.
+    std::vector<std::size_t> candidates;
+    if (options.region) {
+      candidates = index.cells_in_box(options.region->bounds());
+      std::erase_if(candidates, [&](std::size_t i) {
+        return !options.region->contains(center_of_key(index.key(i), index.cell_size()));
+      });
+    }
+    const std::size_t n = options.region ? candidates.size() : index.size();
     struct Local {
       TopK best;
       std::vector<float> scratch;
     };
     tbb::enumerable_thread_specific<Local> locals([&] { return Local{TopK(options.top_k), std::vector<float>(dim)}; });
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, index.size(), kGrain), [&](const auto& range) {
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, kGrain), [&](const auto& range) {
       Local& local = locals.local();
-      for (std::size_t i = range.begin(); i != range.end(); ++i) {
+      for (std::size_t k = range.begin(); k != range.end(); ++k) {
+        const std::size_t i = options.region ? candidates[k] : k;
         const GlobalIndex::Parts v = index.parts(i, local.scratch.data());
         float dot, norm2;
         kernels::dot_and_squared_norm(v.embedding, q.data(), dim, &dot, &norm2);

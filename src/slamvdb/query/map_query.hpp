@@ -11,6 +11,7 @@
 
 #include "slamvdb/map/semantic_map.hpp"
 #include "slamvdb/query/query_classifier.hpp"
+#include "slamvdb/query/query_region.hpp"
 #include "slamvdb/query/query_set.hpp"
 
 namespace slamvdb {
@@ -29,11 +30,16 @@ struct ScoredCell {
 struct SearchOptions {
   std::size_t top_k = 0;                                     // 0: every cell above the threshold
   float threshold = -std::numeric_limits<float>::infinity();  // keep cells with score >= threshold
+  // Only cells whose centre lies in the region: submaps whose world bounds miss it are not read,
+  // the cells of the others are tested exactly, and only those inside are scored
+  // (GlobalIndex::cells_in_box). The answer is the unrestricted one's cells in the region.
+  std::optional<QueryRegion> region;
 };
 
 // Cells by decreasing similarity with `query` (any norm; dim = the map's), ties by cell key. Cells
 // whose embedding is zero or not finite have no similarity and are left out. Parallel (TBB).
-// Throws Error on a query of the wrong dimension or a zero / non-finite query.
+// Throws Error on a query of the wrong dimension or a zero / non-finite query. A region outside
+// the map answers no cells.
 std::vector<ScoredCell> similarity_search(const SemanticMap& map, std::span<const float> query,
                                           const SearchOptions& options = {});
 

@@ -1,0 +1,186 @@
+// `slamvdb serve`: a saved map as a service over HTTP (issue 21), for planners, scripts and people.
+// The map is loaded once and read through its global index; the text encoder (TorchScript or the
+// SIMULATED one, said so in every answer) is loaded once, with a cache of text embeddings. Every
+// answer comes from the same library functions as `query` and `info --json --check`.
+#include <fmt/format.h>
+#include <signal.h>
+#include <spdlog/spdlog.h>
+
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstdio>
+#include <fstream>
+#include <thread>
+
+#include "command_registry.hpp"
+#include "io_options.hpp"
+#include "option_checks.hpp"
+#include "text_encoder_option.hpp"
+#include "slamvdb/server/http_server.hpp"
+
+namespace slamvdb::cli::cmd_serve {
+namespace {
+
+struct Options {
+  std::string map, bind = "127.0.0.1", queries, text_model, token_file, tls_cert, tls_key;
+  int port = 8080;
+  uint64_t sim_seed = 1;
+  float sim_text_gap = 0.f;
+  bool ignore_model_id = false, no_void_rule = false, no_text = false, insecure_no_auth = false;
+  ServerLimits limits;
+};
+
+// Another address than loopback needs --token or an explicit --insecure-no-auth: a map must not
+// be readable by the whole network because of a typo in --bind.
+// Written by the signal handler, read by run() (see there).
+int stop_pipe[2] = {-1, -1};
+
+bool is_loopback(const std::string& address) {
+  return address == "localhost" || address == "::1" || address.rfind("127.", 0) == 0;
+}
+
+// The bearer token from its file: the first line, without surrounding blanks; at least 16
+// characters (a short token is guessed).
+std::string read_token(const std::string& file) {
+  std::ifstream in(file);
+  std::string token;
+  if (!in || !std::getline(in, token)) throw Error(fmt::format("--token {}: cannot read a line", file));
+  const auto first = token.find_first_not_of(" \t\r");
+  const auto last = token.find_last_not_of(" \t\r");
+  token = first == std::string::npos ? "" : token.substr(first, last - first + 1);
+  if (token.size() < 16) throw Error(fmt::format("--token {}: the token has {} characters; use at least 16", file, token.size()));
+  return token;
+}
+
+void run(const Options& opt) {
+  const std::string token = opt.token_file.empty() ? "" : read_token(opt.token_file);
+  auto map = open_map_file_service(opt.map);
+  std::unique_ptr<TextEmbeddingCache> text;
+  if (!opt.no_text) {
+    auto encoder = open_text_encoder(opt.text_model, map->space().dim, opt.sim_seed, opt.sim_text_gap);
+    text = std::make_unique<TextEmbeddingCache>(std::move(encoder), opt.text_model.empty());
+    check_text_space(text->info(), map->space(), opt.ignore_model_id);
+  }
+  std::optional<QuerySet> queries;
+  if (!opt.queries.empty()) {
+    queries = load_query_set(opt.queries);
+    check_compatible(*queries, map->space().dim, map->space().model_id,
+                     opt.ignore_model_id ? ModelIdCheck::kIgnore : ModelIdCheck::kRequireMatch);
+  }
+  ServerOptions options;
+  options.bind = opt.bind;
+  options.port = opt.port;
+  options.limits = opt.limits;
+  options.classify.void_to_second_best = !opt.no_void_rule;
+  options.model_check = opt.ignore_model_id ? ModelIdCheck::kIgnore : ModelIdCheck::kRequireMatch;
+  options.queries_name = opt.queries;
+  options.token = token;
+  options.tls_cert = opt.tls_cert;
+  options.tls_key = opt.tls_key;
+  MapServer server(map, std::move(text), std::move(queries), options);
+
+  // SIGINT / SIGTERM end the server cleanly. The handler only writes a byte to a pipe (async-signal
+  // safe, whichever thread the signal lands on: TBB's and the server's threads exist already); this
+  // thread waits for it and stops the server outside any handler. Installed before the address is
+  // printed: whoever reads it may signal at once.
+  if (pipe(stop_pipe) != 0) throw Error("serve: cannot create the stop pipe");
+  struct sigaction on_stop {};
+  on_stop.sa_handler = [](int signal) {
+    const char byte = static_cast<char>(signal);
+    [[maybe_unused]] const auto n = write(stop_pipe[1], &byte, 1);
+  };
+  sigemptyset(&on_stop.sa_mask);
+  sigaction(SIGINT, &on_stop, nullptr);
+  sigaction(SIGTERM, &on_stop, nullptr);
+  const int port = server.bind();
+  // A line of stdout names the address (with --port 0, the port the system chose); scripts and tests
+  // read the port from it.
+  fmt::print("serving {} on {}://{}:{}/ ({} semantic voxels)\n", opt.map, opt.tls_cert.empty() ? "http" : "https",
+             opt.bind.find(':') != std::string::npos ? "[" + opt.bind + "]" : opt.bind, port,
+             map->semantic_cells());
+  std::fflush(stdout);
+  std::thread serving([&server] {
+    server.run();
+    const char byte = 0;  // the server ended by itself: let the waiting thread go on
+    [[maybe_unused]] const auto n = write(stop_pipe[1], &byte, 1);
+  });
+  char signal = 0;
+  while (read(stop_pipe[0], &signal, 1) < 0 && errno == EINTR) {
+  }
+  server.stop();
+  serving.join();
+  spdlog::info("server stopped (signal {})", static_cast<int>(signal));
+}
+
+void add(CLI::App& root) {
+  auto opt = std::make_shared<Options>();
+  auto* cmd = root.add_subcommand(
+      "serve", "Serve a map over HTTP (read-only JSON API: /healthz, /metrics, /api/info, /api/submaps, POST /api/query, POST /api/at; README \"slamvdb serve\")");
+  cmd->add_option("map", opt->map, "Map file (.svdb)")->required()->check(CLI::ExistingFile);
+  cmd->add_option("--bind", opt->bind,
+                  "Address to listen on; another than loopback (127.0.0.1, ::1, localhost) needs --token or "
+                  "--insecure-no-auth")
+      ->capture_default_str();
+  cmd->add_option("--token", opt->token_file,
+                  "File whose first line is a bearer token (16 characters or more) every route but /healthz requires: "
+                  "\"Authorization: Bearer TOKEN\"")
+      ->check(CLI::ExistingFile);
+  cmd->add_flag("--insecure-no-auth", opt->insecure_no_auth,
+                "Serve another address than loopback without a token (anyone who reaches it reads the map)");
+  cmd->add_option("--tls-cert", opt->tls_cert, "TLS: the certificate (chain) as PEM; needs --tls-key")
+      ->check(CLI::ExistingFile);
+  cmd->add_option("--tls-key", opt->tls_key, "TLS: the certificate's private key as PEM")->check(CLI::ExistingFile);
+  cmd->add_option("--port", opt->port, "Port (0: a free one, printed in the line \"serving MAP on http://HOST:PORT/\")")
+      ->capture_default_str()
+      ->check(integer_range(0, 65535));
+  cmd->add_option("--queries", opt->queries, "Query set file: class questions, and a class + confidence in every answer")
+      ->check(CLI::ExistingFile);
+  cmd->add_option("--text-model", opt->text_model, "TorchScript CLIP text encoder (default: the SIMULATED one)")
+      ->check(CLI::ExistingFile);
+  cmd->add_flag("--no-text", opt->no_text, "Load no text encoder (text questions are refused)");
+  cmd->add_option("--sim-seed", opt->sim_seed, "Seed of the simulated text encoder (as for `map`)")
+      ->capture_default_str()
+      ->check(integer_range(0, bounds::kMaxSeed));
+  cmd->add_option("--sim-text-gap", opt->sim_text_gap, "SIMULATED text-image gap (see train-queries)")
+      ->capture_default_str()
+      ->check(finite_range(0.0, 1e6));
+  cmd->add_flag("--ignore-model-id", opt->ignore_model_id,
+                "Accept an encoder or queries whose model id differs from the map's (the dimension is still checked)");
+  cmd->add_flag("--no-void-rule", opt->no_void_rule, "With --queries: let void classes win");
+  cmd->add_option("--max-body", opt->limits.max_body_bytes, "Largest request body in bytes (larger: 413)")
+      ->capture_default_str()
+      ->check(integer_range(64, 64 << 20));
+  cmd->add_option("--max-top-k", opt->limits.max_top_k, "Largest top_k of a query (and most results of one answer)")
+      ->capture_default_str()
+      ->check(integer_range(1, 1'000'000));
+  cmd->add_option("--max-points", opt->limits.max_points, "Most points of one POST /api/at")
+      ->capture_default_str()
+      ->check(integer_range(1, 10'000'000));
+  cmd->add_option("--max-concurrent", opt->limits.max_concurrent,
+                  "Requests answered at once; more get 503 + Retry-After at once (/healthz and /metrics always answer)")
+      ->capture_default_str()
+      ->check(integer_range(1, 4096));
+  add_option_checks(cmd, [opt] {
+    if (!is_loopback(opt->bind) && opt->token_file.empty() && !opt->insecure_no_auth)
+      usage_error(fmt::format("--bind {}: another address than loopback needs --token FILE (or --insecure-no-auth)",
+                              opt->bind));
+    if (opt->tls_cert.empty() != opt->tls_key.empty()) usage_error("--tls-cert and --tls-key go together");
+  });
+  auto io = std::make_shared<IoOptions>(cmd);
+  io->input("map", opt->map);
+  io->input("--queries", opt->queries);
+  io->input("--text-model", opt->text_model);
+  io->input("--token", opt->token_file);
+  io->input("--tls-cert", opt->tls_cert);
+  io->input("--tls-key", opt->tls_key);
+  cmd->callback([opt, io] {
+    io->check();
+    run(*opt);
+  });
+}
+
+const RegisterCommand reg{add};
+
+}  // namespace
+}  // namespace slamvdb::cli::cmd_serve

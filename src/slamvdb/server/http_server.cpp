@@ -1,0 +1,250 @@
+#include "slamvdb/server/http_server.hpp"
+
+#include <fmt/format.h>
+#include <openssl/crypto.h>
+#include <spdlog/spdlog.h>
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <functional>
+#include <limits>
+#include <thread>
+
+#include "slamvdb/server/httplib_include.hpp"
+#include "slamvdb/server/server_metrics.hpp"
+
+namespace slamvdb {
+
+namespace http_server_detail {
+
+constexpr const char* kJson = "application/json";
+
+void send_json(httplib::Response& res, int status, const nlohmann::json& body) {
+  res.status = status;
+  // Text from the map or the request (class names, messages) that is not valid UTF-8 is replaced,
+  // never a throw while answering.
+  res.set_content(body.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace), kJson);
+}
+
+void send_error(httplib::Response& res, int status, const std::string& message, const std::string& field = "") {
+  send_json(res, status, error_json(message, field));
+}
+
+using JsonRoute = std::function<void(const httplib::Request&, httplib::Response&)>;
+
+// A route's handler: admitted while fewer than `max_in_flight` requests are being answered (else
+// 503 at once), the library's refusals turned into JSON answers, anything else thrown a bug of
+// ours (500 with a generic message, logged, never a stack trace to the client), and every answer
+// counted under the route's pattern.
+httplib::Server::Handler guarded(ServerMetrics& metrics, std::string route, std::size_t max_in_flight,
+                                 JsonRoute handler) {
+  return [&metrics, route = std::move(route), max_in_flight, handler = std::move(handler)](const httplib::Request& req,
+                                                                                          httplib::Response& res) {
+    const auto start = std::chrono::steady_clock::now();
+    {
+      const ServerMetrics::InFlight in_flight(metrics);
+      if (in_flight.count > max_in_flight) {
+        res.set_header("Retry-After", "1");
+        send_error(res, 503, fmt::format("busy: {} requests are being answered (--max-concurrent); try again",
+                                         max_in_flight));
+      } else {
+        try {
+          handler(req, res);
+        } catch (const RequestError& e) {
+          send_error(res, e.status(), e.what(), e.field());
+        } catch (const std::exception& e) {
+          spdlog::error("{} {}: {}", req.method, req.path, e.what());
+          send_error(res, 500, "internal error (logged by the server)");
+        }
+      }
+    }
+    metrics.record(route, res.status, std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
+  };
+}
+
+// "Authorization: Bearer TOKEN" against the token, in time independent of where they differ.
+bool has_token(const httplib::Request& req, const std::string& token) {
+  const std::string header = req.get_header_value("Authorization");
+  const std::string prefix = "Bearer ";
+  if (header.size() != prefix.size() + token.size() || header.compare(0, prefix.size(), prefix) != 0) return false;
+  return CRYPTO_memcmp(header.data() + prefix.size(), token.data(), token.size()) == 0;
+}
+
+}  // namespace http_server_detail
+
+struct MapServer::Impl {
+  std::shared_ptr<const MapService> map;
+  std::unique_ptr<TextEmbeddingCache> text;
+  std::optional<QuerySet> queries;
+  ServerOptions options;
+  AnswerContext context;
+  std::unique_ptr<httplib::Server> http;
+  ServerMetrics metrics;
+  bool bound = false;
+  std::atomic<bool> stopping{false}, running{false};  // see MapServer::stop
+
+  void add_routes();
+  std::string metrics_text() const;
+};
+
+std::string MapServer::Impl::metrics_text() const {
+  std::map<std::string, std::pair<double, std::string>> gauges;
+  gauges["slamvdb_map_semantic_cells"] = {static_cast<double>(map->semantic_cells()),
+                                          "Cells of the global index that hold an embedding."};
+  const nlohmann::json info = map->info();
+  const double submaps = info.contains("submaps") ? static_cast<double>(info["submaps"].size()) : 0.0;
+  gauges["slamvdb_map_submaps"] = {submaps, "Submaps of the map."};
+  gauges["slamvdb_map_submaps_in_memory"] = {submaps, "Submaps held in memory (a saved map: all of them)."};
+  if (text) {
+    const auto c = text->counts();
+    gauges["slamvdb_text_cache_hits"] = {static_cast<double>(c.hits), "Text embeddings answered from the cache."};
+    gauges["slamvdb_text_cache_misses"] = {static_cast<double>(c.misses), "Text embeddings computed by the encoder."};
+    gauges["slamvdb_text_cache_entries"] = {static_cast<double>(c.size), "Text embeddings in the cache."};
+  }
+  return metrics.text(gauges);
+}
+
+void MapServer::Impl::add_routes() {
+  using namespace http_server_detail;
+  constexpr std::size_t kAlways = std::numeric_limits<std::size_t>::max();  // monitoring: never refused
+  const std::size_t limit = options.limits.max_concurrent;
+  // Every route with its one method; the other methods on a known path answer 405 (httplib alone
+  // would say 404, which tells a client the path is wrong when the method is).
+  struct Route {
+    std::string path, method;
+    std::size_t max_in_flight;
+    JsonRoute handler;
+  };
+  const std::vector<Route> routes = {
+      {"/healthz", "GET", kAlways,
+       [this](const httplib::Request&, httplib::Response& res) {
+         send_json(res, 200, {{"status", "ok"}, {"semantic_cells", map->semantic_cells()}, {"encoder", encoder_json(context)}});
+       }},
+      {"/metrics", "GET", kAlways,
+       [this](const httplib::Request&, httplib::Response& res) {
+         res.set_content(metrics_text(), "text/plain; version=0.0.4; charset=utf-8");
+       }},
+      {"/api/info", "GET", limit,
+       [this](const httplib::Request&, httplib::Response& res) { send_json(res, 200, answer_info(context)); }},
+      {"/api/submaps", "GET", limit,
+       [this](const httplib::Request&, httplib::Response& res) { send_json(res, 200, answer_submaps(context)); }},
+      {"/api/at", "POST", limit,
+       [this](const httplib::Request& req, httplib::Response& res) {
+         send_json(res, 200, answer_at(context, decode_at_request(req.body, options.limits)));
+       }},
+      {"/api/query", "POST", limit,
+       [this](const httplib::Request& req, httplib::Response& res) {
+         const QueryRequest request = decode_query_request(req.body, map->space().dim, options.limits);
+         send_json(res, 200, answer_query(context, request));
+       }},
+  };
+  for (const Route& r : routes) {
+    const JsonRoute refuse = [path = r.path, method = r.method](const httplib::Request& req, httplib::Response& res) {
+      res.set_header("Allow", method);
+      send_error(res, 405, fmt::format("{} answers {} only, not {}", path, method, req.method));
+    };
+    const auto handler_for = [&](const std::string& method) {
+      return guarded(metrics, r.path, method == r.method ? r.max_in_flight : kAlways,
+                     method == r.method ? r.handler : refuse);
+    };
+    http->Get(r.path, handler_for("GET"));
+    http->Post(r.path, handler_for("POST"));
+    http->Put(r.path, handler_for("PUT"));
+    http->Patch(r.path, handler_for("PATCH"));
+    http->Delete(r.path, handler_for("DELETE"));
+  }
+  // A bearer token, when set, guards every route but /healthz (probes need no secret; it tells
+  // only that the server is up). Checked before routing, so no route runs for a stranger.
+  if (!options.token.empty())
+    http->set_pre_routing_handler([this](const httplib::Request& req, httplib::Response& res) {
+      if (req.path == "/healthz" || has_token(req, options.token)) return httplib::Server::HandlerResponse::Unhandled;
+      res.set_header("WWW-Authenticate", "Bearer");
+      send_error(res, 401, "this server needs \"Authorization: Bearer TOKEN\" (the token of its --token file)");
+      metrics.record("unauthorized", 401, 0.0);
+      return httplib::Server::HandlerResponse::Handled;
+    });
+  // Statuses httplib sets itself (404 no route, 413 body too large, 400 unreadable request): the
+  // same JSON error body, counted under "unmatched". Answers that already carry one are left.
+  http->set_error_handler(
+      httplib::Server::HandlerWithResponse([this](const httplib::Request& req, httplib::Response& res) {
+        if (!res.body.empty()) return httplib::Server::HandlerResponse::Unhandled;
+        const std::string message = res.status == 404   ? fmt::format("no route {}", req.path)
+                                    : res.status == 413 ? "the request body is too large (--max-body)"
+                                                        : fmt::format("HTTP {}", res.status);
+        send_json(res, res.status, error_json(message, res.status == 413 ? "body" : ""));
+        metrics.record("unmatched", res.status, 0.0);
+        return httplib::Server::HandlerResponse::Handled;
+      }));
+  http->set_exception_handler([](const httplib::Request& req, httplib::Response& res, std::exception_ptr) {
+    spdlog::error("{} {}: an exception escaped a route", req.method, req.path);
+    send_json(res, 500, error_json("internal error (logged by the server)", ""));
+  });
+  http->set_payload_max_length(options.limits.max_body_bytes);
+  // Workers: the admission limit plus room for monitoring and refusals, so that the limit, not
+  // the pool, decides who waits (httplib's own pool is sized for the CPU and queues without bound).
+  const std::size_t workers = std::min<std::size_t>(limit, 256) + 4;
+  http->new_task_queue = [workers] { return new httplib::ThreadPool(workers); };
+}
+
+MapServer::MapServer(std::shared_ptr<const MapService> map, std::unique_ptr<TextEmbeddingCache> text,
+                     std::optional<QuerySet> queries, ServerOptions options)
+    : impl_(std::make_unique<Impl>()) {
+  impl_->map = std::move(map);
+  impl_->text = std::move(text);
+  impl_->queries = std::move(queries);
+  impl_->options = std::move(options);
+  const ServerOptions& o = impl_->options;
+  if (o.tls_cert.empty() != o.tls_key.empty()) throw Error("TLS needs both a certificate and its key");
+  if (!o.tls_cert.empty()) {
+    auto tls = std::make_unique<httplib::SSLServer>(o.tls_cert.c_str(), o.tls_key.c_str());
+    if (!tls->is_valid())
+      throw Error(fmt::format("cannot use the TLS certificate {} with the key {} (PEM files that belong together?)",
+                              o.tls_cert, o.tls_key));
+    impl_->http = std::move(tls);
+  } else {
+    impl_->http = std::make_unique<httplib::Server>();
+  }
+  AnswerContext& c = impl_->context;
+  c.map = impl_->map.get();
+  c.text = impl_->text.get();
+  c.queries = impl_->queries ? &*impl_->queries : nullptr;
+  c.queries_name = o.queries_name;
+  c.classify = o.classify;
+  c.model_check = o.model_check;
+  impl_->add_routes();
+}
+
+MapServer::~MapServer() { stop(); }
+
+int MapServer::bind() {
+  const ServerOptions& o = impl_->options;
+  int port = o.port;
+  if (o.port == 0) {
+    port = impl_->http->bind_to_any_port(o.bind);
+    if (port < 0) throw Error(fmt::format("cannot bind {} on an ephemeral port", o.bind));
+  } else if (!impl_->http->bind_to_port(o.bind, o.port)) {
+    throw Error(fmt::format("cannot bind {}:{} (in use, or not an address of this machine)", o.bind, o.port));
+  }
+  impl_->bound = true;
+  return port;
+}
+
+void MapServer::run() {
+  if (!impl_->bound) throw Error("MapServer::run before bind");
+  impl_->running = true;
+  if (!impl_->stopping) impl_->http->listen_after_bind();
+  impl_->running = false;
+}
+
+// httplib's stop() does nothing before its listen loop is up, so a stop that comes while run() is
+// starting would be lost and run() would never return: stop() marks the server stopping (run()
+// then does not start) or waits until the loop is up. Both flags are sequentially consistent, so
+// one of the two threads always sees the other's flag.
+void MapServer::stop() {
+  impl_->stopping = true;
+  while (impl_->running && !impl_->http->is_running()) std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  impl_->http->stop();
+}
+
+}  // namespace slamvdb

@@ -1,0 +1,145 @@
+#include "slamvdb/server/map_answers.hpp"
+
+#include <fmt/format.h>
+
+#include <cmath>
+
+namespace slamvdb {
+
+nlohmann::json encoder_json(const AnswerContext& context) {
+  if (!context.text) return nullptr;
+  return {{"model_id", context.text->info().model_id}, {"simulated", context.text->info().simulated}};
+}
+
+void check_text_space(const TextEncoderInfo& encoder, const QuerySpace& space, bool ignore_model_id) {
+  if (ignore_model_id || encoder.model_id == space.model_id) return;
+  throw Error(fmt::format("the text encoder embeds into '{}' but the map is in '{}' (use the encoder the map was "
+                          "built with, or --ignore-model-id if they are the same space)",
+                          encoder.model_id, space.model_id));
+}
+
+namespace map_answers_detail {
+
+// Which request field an Error of the library is about, for the 400 answer.
+std::string field_of_terms(const QueryTerms& terms) {
+  if (terms.uses_classes()) return "class";
+  if (terms.uses_text()) return "text";
+  return "vector";
+}
+
+// The region an answer was limited to, as the request gives it (null: the whole map).
+nlohmann::json region_json(const std::optional<QueryRegion>& region) {
+  if (!region) return nullptr;
+  nlohmann::json j = nlohmann::json::object();
+  if (region->box) {
+    const Vec3d& lo = region->box->min();
+    const Vec3d& hi = region->box->max();
+    j["bbox"] = {lo.x(), lo.y(), lo.z(), hi.x(), hi.y(), hi.z()};
+  }
+  if (region->near) {
+    const Vec3d& c = region->near->centre;
+    j["near"] = region->near->horizontal ? nlohmann::json({c.x(), c.y()}) : nlohmann::json({c.x(), c.y(), c.z()});
+    j["radius"] = region->near->radius;
+  }
+  return j;
+}
+
+}  // namespace map_answers_detail
+
+nlohmann::json answer_query(const AnswerContext& context, const QueryRequest& request) {
+  const QuerySpace space = context.map->space();
+  if (request.terms.uses_text() && !context.text)
+    throw RequestError(400, "text", "this server has no text encoder");
+  if (request.terms.uses_classes() && !context.queries)
+    throw RequestError(400, "class", "this server has no query set (start it with --queries)");
+  TextEmbedder embed_text = [&](std::string_view text) -> Eigen::VectorXf {
+    try {
+      return context.text->embed(text);
+    } catch (const Error& e) {
+      throw RequestError(400, "text", e.what());
+    }
+  };
+  QueryTermSources sources;
+  sources.embed_text = context.text ? &embed_text : nullptr;
+  sources.queries = context.queries;
+  sources.queries_name = context.queries_name;
+  sources.model_check = context.model_check;
+  Eigen::VectorXf q;
+  try {
+    q = build_query_vector(space, request.terms, sources);
+  } catch (const RequestError&) {
+    throw;
+  } catch (const Error& e) {
+    throw RequestError(400, map_answers_detail::field_of_terms(request.terms), e.what());
+  }
+  std::vector<ScoredCell> results =
+      context.map->search(std::span<const float>(q.data(), static_cast<std::size_t>(q.size())), request.search);
+  if (context.queries) context.map->classify(*context.queries, results, context.classify, context.model_check);
+  nlohmann::json rows = nlohmann::json::array();
+  for (std::size_t i = 0; i < results.size(); ++i) {
+    const ScoredCell& r = results[i];
+    nlohmann::json row = {{"rank", i + 1},
+                          {"position", {r.position_world.x(), r.position_world.y(), r.position_world.z()}},
+                          {"score", r.score},
+                          {"count", r.count},
+                          {"weight", r.stats.weight},
+                          // S/W as the CLI's CSV writes it; null where the map does not know it.
+                          {"spread", r.stats.known() && r.stats.weight > 0 ? nlohmann::json(r.stats.spread / r.stats.weight)
+                                                                            : nlohmann::json()}};
+    if (context.queries) {
+      const bool has_class = r.match && r.match->class_index != kNoClass;
+      row["class"] = has_class ? nlohmann::json(context.queries->names[static_cast<std::size_t>(r.match->class_index)])
+                               : nlohmann::json();
+      row["confidence"] = r.confidence;
+    }
+    rows.push_back(std::move(row));
+  }
+  return {{"encoder", encoder_json(context)},
+          {"semantic_cells", context.map->semantic_cells()},
+          {"top_k", request.top_k_capped ? 0 : request.search.top_k},
+          {"threshold", std::isfinite(request.search.threshold) ? nlohmann::json(request.search.threshold) : nlohmann::json()},
+          {"exact", true},  // every answer is scored exactly today (an ANN index comes with issue 21's speed part)
+          {"truncated", request.top_k_capped && results.size() >= request.search.top_k},
+          {"region", map_answers_detail::region_json(request.search.region)},
+          {"count", results.size()},
+          {"results", std::move(rows)}};
+}
+
+nlohmann::json answer_at(const AnswerContext& context, const AtRequest& request) {
+  const std::vector<PointQuery> answers =
+      context.map->at(request.points, context.queries, context.classify, context.model_check);
+  nlohmann::json rows = nlohmann::json::array();
+  std::size_t found = 0;
+  for (const PointQuery& a : answers) {
+    found += a.found;
+    const bool has_class = a.match && a.match->class_index != kNoClass;
+    nlohmann::json row = {
+        {"point", {a.point_world.x(), a.point_world.y(), a.point_world.z()}},
+        {"found", a.found},
+        {"cell", a.found ? nlohmann::json({a.cell_centre.x(), a.cell_centre.y(), a.cell_centre.z()}) : nlohmann::json()},
+        {"count", a.count},
+        {"class", has_class ? nlohmann::json(context.queries->names[static_cast<std::size_t>(a.match->class_index)])
+                            : nlohmann::json()},
+        {"score", a.match ? nlohmann::json(a.match->score) : nlohmann::json()},
+        {"margin", a.match ? nlohmann::json(a.match->margin) : nlohmann::json()},
+        {"weight", a.found ? nlohmann::json(a.stats.weight) : nlohmann::json()},
+        {"spread", a.found && a.stats.known() && a.stats.weight > 0 ? nlohmann::json(a.stats.spread / a.stats.weight)
+                                                                    : nlohmann::json()},
+        {"confidence", a.match ? nlohmann::json(a.confidence) : nlohmann::json()}};
+    if (request.embedding) row["embedding"] = a.found ? nlohmann::json(a.embedding) : nlohmann::json();
+    rows.push_back(std::move(row));
+  }
+  return {{"encoder", encoder_json(context)}, {"count", answers.size()}, {"found", found}, {"results", std::move(rows)}};
+}
+
+nlohmann::json answer_submaps(const AnswerContext& context) {
+  return {{"encoder", encoder_json(context)}, {"submaps", context.map->info().at("submaps")}};
+}
+
+nlohmann::json answer_info(const AnswerContext& context) {
+  nlohmann::json j = context.map->info();
+  j["encoder"] = encoder_json(context);
+  return j;
+}
+
+}  // namespace slamvdb

@@ -1,0 +1,79 @@
+#pragma once
+// Decoding of HTTP requests into the library's questions: small pure functions from text to
+// structs, so that a libFuzzer harness (fuzz/fuzz_server_requests.cpp, next session) reaches them
+// without a socket. Anything wrong is a RequestError naming the field, answered 400 (or the
+// status it carries); nothing here trusts a size, a depth or a number from the request.
+#include <cstddef>
+#include <nlohmann/json.hpp>
+#include <string>
+#include <string_view>
+
+#include "slamvdb/core/error.hpp"
+#include "slamvdb/query/map_query.hpp"
+#include "slamvdb/query/query_terms.hpp"
+
+namespace slamvdb {
+
+// The limits a request is held to (serve's options set them; README "slamvdb serve").
+struct ServerLimits {
+  // 4 MiB: 100 000 points of /api/at as JSON (about 20-30 bytes each), or many 512-d vectors.
+  std::size_t max_body_bytes = 4 << 20;
+  std::size_t max_top_k = 10000;         // results per answer
+  std::size_t max_terms = 32;            // texts + classes + vectors of one question
+  std::size_t max_text_bytes = 1000;     // one text term (CLIP reads 77 tokens anyway)
+  std::size_t max_points = 100000;       // points of one POST /api/at
+  // Requests answered at once; more are refused with 503 + Retry-After at once rather than queued
+  // without bound (/healthz and /metrics are never refused, so monitoring sees a busy server).
+  std::size_t max_concurrent = 32;
+};
+
+// A request the server refuses: HTTP status, the request field at fault ("" for the request as a
+// whole) and a message for a person.
+class RequestError : public Error {
+ public:
+  RequestError(int status, std::string field, const std::string& message)
+      : Error(message), status_(status), field_(std::move(field)) {}
+  int status() const { return status_; }
+  const std::string& field() const { return field_; }
+
+ private:
+  int status_;
+  std::string field_;
+};
+
+// The error body every refusal carries: {"error": {"message": ..., "field": ... or null}}.
+nlohmann::json error_json(const std::string& message, const std::string& field);
+
+// POST /api/query. Fields (docs/openapi.yaml): text, not, class, not_class (a string or an array of
+// strings), vector, not_vector (an array of `dim` numbers or an array of such arrays), top_k
+// (1..max_top_k, or 0 with a threshold: every cell at or above it, at most max_top_k), threshold
+// (-1..1), exact (boolean), region ({"bbox": [xmin, ymin, zmin, xmax, ymax, zmax]} and/or
+// {"near": [x, y] or [x, y, z], "radius": r}: query/query_region.hpp; errors name region.bbox,
+// region.near or region.radius). Unknown fields are refused (a typo must not pass as a default).
+struct QueryRequest {
+  QueryTerms terms;
+  SearchOptions search = [] {  // the CLI's default: the top 100
+    SearchOptions s;
+    s.top_k = 100;
+    return s;
+  }();
+  bool exact = false;       // exact scoring asked for (today every answer is exact)
+  bool top_k_capped = false;  // top_k 0 + threshold: the answer holds at most max_top_k cells
+};
+
+QueryRequest decode_query_request(std::string_view body, int dim, const ServerLimits& limits);
+
+// POST /api/at. Fields: points (an array of [x, y, z], finite numbers; 1..max_points of them),
+// embedding (boolean, default false: the cell's count-weighted mean embedding in each answer).
+struct AtRequest {
+  std::vector<Vec3d> points;
+  bool embedding = false;
+};
+
+AtRequest decode_at_request(std::string_view body, const ServerLimits& limits);
+
+// A JSON object from a request body, refusing non-JSON, nesting deeper than `max_depth` (before a
+// deep document is built) and anything but an object.
+nlohmann::json parse_json_object(std::string_view body, int max_depth = 8);
+
+}  // namespace slamvdb
