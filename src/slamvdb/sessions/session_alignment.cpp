@@ -11,6 +11,7 @@
 #include "slamvdb/localization/preprocessing.hpp"
 #include "slamvdb/localization/registration.hpp"
 #include "slamvdb/localization/voxel_hash_map.hpp"
+#include "slamvdb/sessions/surface_refinement.hpp"
 
 namespace slamvdb::sessions {
 
@@ -168,13 +169,14 @@ Pose refine_alignment(const AlignmentSession& base, const AlignmentSession& othe
   for (const std::size_t i : winners) base_places.insert(pairs[i].base_place), other_places.insert(pairs[i].other_place);
   // The base reaches farther than the other session's places, so that every point of those
   // finds its true neighbour.
+  const std::vector<Vec3d> base_points = session_cloud_near(base, base_places, radius + 10.0, voxel);
   VoxelHashMap target(voxel, 1e9, 20);
-  target.add_points(session_cloud_near(base, base_places, radius + 10.0, voxel));
+  target.add_points(base_points);
+  const std::vector<Vec3d> other_points = session_cloud_near(other, other_places, radius, voxel);
   // The source at twice the cloud voxel: the dense target gives each of its points a near
   // neighbour, and every point costs 27 hash look-ups per iteration (the refinement was half
   // the alignment's time with the source at the cloud voxel, for no gain in accuracy).
-  const std::vector<Vec3d> source = localization::voxel_downsample(
-      session_cloud_near(other, other_places, radius, voxel), 2.0 * config.places.cloud_voxel);
+  const std::vector<Vec3d> source = localization::voxel_downsample(other_points, 2.0 * config.places.cloud_voxel);
   Pose T = start;
   for (const double distance : {2.0 * config.places.cloud_voxel, config.places.cloud_voxel, voxel}) {
     localization::IcpOptions icp;
@@ -186,6 +188,22 @@ Pose refine_alignment(const AlignmentSession& base, const AlignmentSession& othe
     const localization::IcpResult r = localization::align_point_to_point(source, target, T, icp);
     if (!r.enough_correspondences) break;  // keep the last good transform
     T = r.T_target_source;
+  }
+  if (config.surface_refinement) {
+    // Point-to-point between two voxel-centre lattices locks them together (surface_refinement.hpp):
+    // the last step puts the other session's voxels on the base's surface planes. Its points at
+    // the cloud voxel (each one a voxel centre as stored, not averaged), a quarter of the ground's.
+    SurfaceRefinementConfig surface;
+    surface.voxel = voxel;
+    surface.normal_radius = 2.4 * voxel;
+    surface.max_distance = voxel;
+    const std::vector<Vec3d> surface_source = localization::voxel_downsample(other_points, config.places.cloud_voxel);
+    std::vector<Vec3d> surface_start;
+    surface_start.reserve(surface_source.size());
+    for (const Vec3d& p : surface_source) surface_start.push_back(T * p);
+    const SurfacePlanes planes(base_points, surface_start, surface);
+    const SurfaceRefinement refined = refine_on_surface(surface_source, planes, T, surface);
+    if (refined.ok) T = refined.T_base_other;
   }
   const localization::AlignmentQuality quality = localization::alignment_quality(source, target, T, config.inlier_distance);
   result.overlap = quality.inlier_fraction();

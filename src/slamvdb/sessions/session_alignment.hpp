@@ -50,6 +50,9 @@ struct AlignmentConfig {
   std::optional<AlignmentPrior> prior;
   // The winning set is refined at this resolution (the maps' voxel size or coarser): metres.
   double refine_voxel = 0.25;
+  // Then point-to-plane on the base's surface (surface_refinement.hpp); off only to measure
+  // what it corrects.
+  bool surface_refinement = true;
   void validate() const;  // throws Error naming the setting
 };
 
