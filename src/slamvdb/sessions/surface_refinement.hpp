@@ -34,7 +34,7 @@ struct SurfaceRefinementConfig {
 // The base's surface: one plane (centroid, unit normal) per base point that has enough neighbours.
 class SurfacePlanes {
  public:
-  // Planes only for the base points within a voxel cell of one of `near` (the other session's
+  // Planes only for the base points within two voxel cells of one of `near` (the other session's
   // points where the refinement starts): the rest is never matched, and a plane costs 125 cell look-ups.
   SurfacePlanes(const std::vector<Vec3d>& base_points, const std::vector<Vec3d>& near,
                 const SurfaceRefinementConfig& config);
