@@ -41,6 +41,13 @@ class AlignTestRng {
 
 constexpr double kAlignTestRange = 35.0;
 constexpr double kAlignTestVoxel = 0.25;
+// Route lengths (metres), the same in the sanitizer run (SLAMVDB_TEST_SCALE): the cost is the
+// number of places (8 per submap at most), and 80 m of route gives as many as 100 m (16).
+// The non-overlap test keeps 150 m (see there).
+constexpr int kRouteLength = 100;
+constexpr int kOtherStart = 20;
+constexpr int kLookAlikeLength = 120;
+constexpr int kDisjointRouteLength = 150;
 
 // `repeat` > 0: look-alike places, a straight route whose ground and objects repeat every
 // `repeat` metres along it.
@@ -137,19 +144,54 @@ Pose make_align_test_pose(double yaw_deg, const Vec3d& t) {
   return T;
 }
 
-TEST(SessionAlignment, RecoversTheRigidTransformOfAMovedCopy) {
-  const AlignTestWorld world = make_align_world(7, 150);
-  const std::vector<SessionSubmap> base = make_align_session(world, Pose::Identity(), 0, 150);
+// The simulated worlds and sessions, built once for the suite (each test only aligns).
+struct AlignTestMaps {
+  AlignTestWorld world;  // seed 7, winding
+  std::vector<SessionSubmap> base;
   // The copy: another world frame (turned 37 degrees, moved), re-voxelised in it, cut into
-  // submaps at other places (from metre 20).
+  // submaps at other places (from metre kOtherStart).
   // 1.35 m in z: the two voxel lattices 0.10 m apart vertically, the worst case measured for
   // point-to-point refinement alone (it locked the lattices, 0.100 m off in z).
-  const Pose T_other_world = make_align_test_pose(37.0, Vec3d(40.0, -25.0, 1.35));
-  const std::vector<SessionSubmap> other = make_align_session(world, T_other_world, 20, 150);
+  Pose T_other_world = make_align_test_pose(37.0, Vec3d(40.0, -25.0, 1.35));
+  std::vector<SessionSubmap> other;
+  AlignTestWorld look_alike_world;  // seed 11, repeating every 30 m
+  std::vector<SessionSubmap> look_alike_base, look_alike_other;
+  // Moved by 12 m along the route (no multiple of 30); 0.4 m in z: the lattices 0.15 m apart
+  // (point-to-point refinement alone was 0.10 m off here).
+  Pose T_look_alike_other_world = make_align_test_pose(-20.0, Vec3d(12.0, 3.0, 0.4));
+};
+
+class SessionAlignment : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    maps_ = new AlignTestMaps;
+    maps_->world = make_align_world(7, kRouteLength);
+    maps_->base = make_align_session(maps_->world, Pose::Identity(), 0, kRouteLength);
+    maps_->other = make_align_session(maps_->world, maps_->T_other_world, kOtherStart, kRouteLength);
+    maps_->look_alike_world = make_align_world(11, kLookAlikeLength, 30.0);
+    maps_->look_alike_base = make_align_session(maps_->look_alike_world, Pose::Identity(), 0, kLookAlikeLength);
+    maps_->look_alike_other =
+        make_align_session(maps_->look_alike_world, maps_->T_look_alike_other_world, 30, kLookAlikeLength);
+  }
+  static void TearDownTestSuite() {
+    delete maps_;
+    maps_ = nullptr;
+  }
+  static const AlignTestMaps& maps() { return *maps_; }
+
+ private:
+  static inline AlignTestMaps* maps_ = nullptr;
+};
+
+TEST_F(SessionAlignment, RecoversTheRigidTransformOfAMovedCopy) {
+  const AlignTestWorld& world = maps().world;
+  const std::vector<SessionSubmap>& base = maps().base;
+  const Pose& T_other_world = maps().T_other_world;
+  const std::vector<SessionSubmap>& other = maps().other;
 
   const auto t0 = std::chrono::steady_clock::now();
   const std::clock_t c0 = std::clock();
-  const SessionAlignment result = align_sessions(base, other);
+  const sessions::SessionAlignment result = align_sessions(base, other);
   std::printf("align_sessions: %.2f s wall, %.2f s CPU\n",
               std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(),
               static_cast<double>(std::clock() - c0) / CLOCKS_PER_SEC);
@@ -184,20 +226,19 @@ TEST(SessionAlignment, RecoversTheRigidTransformOfAMovedCopy) {
               result.sigma_rotation * 180.0 / M_PI);
 }
 
-TEST(SessionAlignment, JointGraphRemovesTheOtherSessionsAnchorDrift) {
-  const AlignTestWorld world = make_align_world(7, 150);
-  const std::vector<SessionSubmap> base = make_align_session(world, Pose::Identity(), 0, 150);
-  const Pose T_other_world = make_align_test_pose(37.0, Vec3d(40.0, -25.0, 1.3));
-  std::vector<SessionSubmap> other = make_align_session(world, T_other_world, 20, 150);
+TEST_F(SessionAlignment, JointGraphRemovesTheOtherSessionsAnchorDrift) {
+  const std::vector<SessionSubmap>& base = maps().base;
+  const Pose& T_other_world = maps().T_other_world;
+  std::vector<SessionSubmap> other = maps().other;
   // The truth, then a drift of the other session's anchors that grows along its drive (each
   // submap's voxels stay right in its own frame, as with odometry drift).
   std::vector<Pose> truth;
   for (std::size_t i = 0; i < other.size(); ++i) {
     truth.push_back(T_other_world.inverse() * other[i].T_world_submap);
     const double k = static_cast<double>(i);
-    other[i].T_world_submap = make_align_test_pose(0.2 * k, Vec3d(0.25 * k, -0.15 * k, 0.05 * k)) * other[i].T_world_submap;
+    other[i].T_world_submap = make_align_test_pose(0.3 * k, Vec3d(0.4 * k, -0.25 * k, 0.08 * k)) * other[i].T_world_submap;
   }
-  const SessionAlignment result = align_sessions(base, other);
+  const sessions::SessionAlignment result = align_sessions(base, other);
   ASSERT_TRUE(result.aligned) << result.refused;
   const std::map<int, Pose> corrected =
       correct_other_anchors(other, result.verified, result.consistent, result.T_base_other);
@@ -219,14 +260,14 @@ TEST(SessionAlignment, JointGraphRemovesTheOtherSessionsAnchorDrift) {
               worst_before, worst_after, worst_angle_after);
 }
 
-TEST(SessionAlignment, LookAlikePlacesGiveNoFalseAlignment) {
+TEST_F(SessionAlignment, LookAlikePlacesGiveNoFalseAlignment) {
   // Ground and objects repeat every 30 m along a straight route: every place has look-alikes one
   // or more periods away. The copy is moved by 12 m along the route, which is no multiple of 30.
-  const AlignTestWorld world = make_align_world(11, 180, 30.0);
-  const std::vector<SessionSubmap> base = make_align_session(world, Pose::Identity(), 0, 180);
-  const Pose T_other_world = make_align_test_pose(-20.0, Vec3d(12.0, 3.0, 0.4));
-  const std::vector<SessionSubmap> other = make_align_session(world, T_other_world, 30, 180);
-  const SessionAlignment result = align_sessions(base, other);
+  const AlignTestWorld& world = maps().look_alike_world;
+  const std::vector<SessionSubmap>& base = maps().look_alike_base;
+  const Pose& T_other_world = maps().T_look_alike_other_world;
+  const std::vector<SessionSubmap>& other = maps().look_alike_other;
+  const sessions::SessionAlignment result = align_sessions(base, other);
   const Pose expected = T_other_world.inverse();
   if (result.aligned) {  // then it must be the true alignment, not a period away
     const Vec3d x = T_other_world * world.route[world.route.size() / 2];
@@ -239,19 +280,18 @@ TEST(SessionAlignment, LookAlikePlacesGiveNoFalseAlignment) {
               result.rival_pairs);
 }
 
-TEST(SessionAlignment, APriorResolvesLookAlikePlaces) {
+TEST_F(SessionAlignment, APriorResolvesLookAlikePlaces) {
   // The look-alike terrain again, now with a prior 2.5 m and 1.5 degrees off (GNSS-like; its
-  // error at the far end of the 150 m drive is ~6 m): the candidates are the base places near
+  // error at the far end of the 90 m drive is ~4.5 m): the candidates are the base places near
   // where it puts each place, and the alignment is found.
-  const AlignTestWorld world = make_align_world(11, 180, 30.0);
-  const std::vector<SessionSubmap> base = make_align_session(world, Pose::Identity(), 0, 180);
-  // 0.4 m in z: the lattices 0.15 m apart (point-to-point refinement alone was 0.10 m off here).
-  const Pose T_other_world = make_align_test_pose(-20.0, Vec3d(12.0, 3.0, 0.4));
-  const std::vector<SessionSubmap> other = make_align_session(world, T_other_world, 30, 180);
+  const AlignTestWorld& world = maps().look_alike_world;
+  const std::vector<SessionSubmap>& base = maps().look_alike_base;
+  const Pose& T_other_world = maps().T_look_alike_other_world;
+  const std::vector<SessionSubmap>& other = maps().look_alike_other;
   const Pose expected = T_other_world.inverse();
   AlignmentConfig config;
   config.prior = AlignmentPrior{make_align_test_pose(1.5, Vec3d(2.0, -1.5, 0.0)) * expected, 10.0, 0.52};
-  const SessionAlignment result = align_sessions(base, other, config);
+  const sessions::SessionAlignment result = align_sessions(base, other, config);
   for (std::size_t r = 0; r < result.rejections.size(); ++r)
     std::printf("rejected (%s): %zu\n", to_string(static_cast<PairRejection>(r)), result.rejections[r]);
   ASSERT_TRUE(result.aligned) << result.refused;
@@ -264,12 +304,15 @@ TEST(SessionAlignment, APriorResolvesLookAlikePlaces) {
               (result.T_base_other * x - expected * x).norm());
 }
 
-TEST(SessionAlignment, RefusesMapsThatDoNotOverlap) {
-  // Two drives through different (equally built) terrain: nothing in common.
-  const AlignTestWorld world_a = make_align_world(7, 150), world_b = make_align_world(8, 150);
-  const std::vector<SessionSubmap> base = make_align_session(world_a, Pose::Identity(), 0, 150);
-  const std::vector<SessionSubmap> other = make_align_session(world_b, make_align_test_pose(-20.0, Vec3d(5, 5, 0)), 0, 150);
-  const SessionAlignment result = align_sessions(base, other);
+TEST_F(SessionAlignment, RefusesMapsThatDoNotOverlap) {
+  // Two drives through different (equally built) terrain: nothing in common. 150 m: at 100 m
+  // (seeds 7 and 8) three verified pairs agree on a false alignment (an open problem of the
+  // consensus, docs/multi-session-design.md), so this size is not cut.
+  const AlignTestWorld world_a = make_align_world(7, kDisjointRouteLength), world_b = make_align_world(8, kDisjointRouteLength);
+  const std::vector<SessionSubmap> base = make_align_session(world_a, Pose::Identity(), 0, kDisjointRouteLength);
+  const std::vector<SessionSubmap> other =
+      make_align_session(world_b, make_align_test_pose(-20.0, Vec3d(5, 5, 0)), 0, kDisjointRouteLength);
+  const sessions::SessionAlignment result = align_sessions(base, other);
   EXPECT_FALSE(result.aligned);
   EXPECT_FALSE(result.refused.empty());
   EXPECT_GT(result.base_places, 0u);
@@ -278,7 +321,7 @@ TEST(SessionAlignment, RefusesMapsThatDoNotOverlap) {
   std::printf("SIMULATED: refused: %s (%zu verified)\n", result.refused.c_str(), result.verified.size());
 }
 
-TEST(SessionAlignment, ChecksItsSettings) {
+TEST_F(SessionAlignment, ChecksItsSettings) {
   AlignmentConfig config;
   config.consensus.min_verified_pairs = 1;
   EXPECT_THROW(config.validate(), Error);
