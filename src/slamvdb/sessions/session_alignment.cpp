@@ -29,6 +29,8 @@ void AlignmentConfig::validate() const {
   require(min_overlap > 0.0 && min_overlap <= 1.0, fmt::format("min overlap {} must be in (0, 1]", min_overlap));
   require(min_structure_overlap >= 0.0 && min_structure_overlap <= 1.0, "min structure overlap must be in [0, 1]");
   require(refine_voxel > 0.0, fmt::format("refine voxel {} m must be > 0", refine_voxel));
+  require(min_refined_overlap >= 0.0 && min_refined_overlap <= 1.0,
+          fmt::format("min refined overlap {} must be in [0, 1]", min_refined_overlap));
   consensus.validate();
   if (prior) {
     require(prior->radius > 0.0 && prior->max_rotation > 0.0, "the prior's radius and rotation must be > 0");
@@ -296,6 +298,14 @@ SessionAlignment align_sessions(const std::vector<SessionSubmap>& base_submaps,
   const std::vector<std::size_t>& winners = consensus.winners;
   const std::size_t best = consensus.best;
   result.T_base_other = refine_alignment(base, other, pairs, winners, pairs[best].T_base_other, config, result);
+  if (result.overlap < config.min_refined_overlap) {
+    result.refused = fmt::format(
+        "the maps do not match around the places the pairs agree on: {} consistent pairs, but only {:.0f}% of the "
+        "other map's voxels near them lie on the base's after refinement (at least {:.0f}% needed; different places "
+        "that look alike?)",
+        winners.size(), 100.0 * result.overlap, 100.0 * config.min_refined_overlap);
+    return result;
+  }
   // Spread of the winning pairs about the result, as the standard error of their mean.
   double sum_t = 0.0, sum_r = 0.0;
   for (const std::size_t i : winners) {

@@ -53,6 +53,12 @@ struct AlignmentConfig {
   // Then point-to-plane on the base's surface (surface_refinement.hpp); off only to measure
   // what it corrects.
   bool surface_refinement = true;
+  // The refined alignment's overlap (the other session's voxels near the winning places that lie
+  // on the base's) must reach this, else refused: pairs of two different terrains can agree (3-5
+  // pairs of 100-120 m SIMULATED drives on different seeds did, each pair passing its own tests),
+  // and then the whole neighbourhood does not match: 0.62-0.69 there, 0.97-1.00 for the same
+  // terrain (with 0.5 m of anchor drift too). Calibrated on SIMULATED maps only.
+  double min_refined_overlap = 0.8;
   void validate() const;  // throws Error naming the setting
 };
 
