@@ -171,37 +171,14 @@ LoopAttempt LoopClosingMapper::verify(std::size_t query, const Candidate& candid
   std::vector<Vec3d> source;
   source.reserve(keyframe_points_[query].size());
   for (const Vec3f& p : keyframe_points_[query]) source.push_back(p.cast<double>());
-  const std::vector<Vec3d> fine_source = voxel_downsample(source, 2.0 * config_.keyframe_voxel);
-  const std::vector<Vec3d> coarse_source = voxel_downsample(source, 4.0 * config_.keyframe_voxel);
-
   // Coarse to fine, since the guess may be metres off (ScanContext gives no translation).
-  struct Stage {
-    const VoxelHashMap* target;
-    const std::vector<Vec3d>* source;
-    double max_distance;
-  };
-  const Stage stages[] = {{&coarse, &coarse_source, 4.5}, {&coarse, &coarse_source, 2.0},
-                          {&fine, &fine_source, 1.0}, {&fine, &fine_source, 0.5}};
-  Pose T = candidate.T_candidate_query_guess;
-  bool ok = true;
-  for (const Stage& stage : stages) {
-    IcpOptions icp;
-    icp.max_correspondence_distance = stage.max_distance;
-    icp.kernel_scale = stage.max_distance / 9.0;
-    icp.max_iterations = 50;
-    icp.convergence = 1e-3;
-    icp.min_correspondences = 50;
-    const IcpResult r = align_point_to_point(*stage.source, *stage.target, T, icp);
-    if (!r.enough_correspondences) {
-      ok = false;
-      break;
-    }
-    T = r.T_target_source;
-  }
-  if (!ok) {
+  const std::optional<Pose> aligned =
+      align_coarse_to_fine(source, coarse, fine, candidate.T_candidate_query_guess, config_.keyframe_voxel);
+  if (!aligned) {
     attempt.rejection = LoopRejection::kIcpFailed;
     return attempt;
   }
+  const Pose T = *aligned;
   const AlignmentQuality quality = alignment_quality(source, fine, T, config_.inlier_distance);
   attempt.overlap = quality.inlier_fraction();
   attempt.rmse = quality.inlier_rmse;

@@ -7,6 +7,7 @@
 #include <cmath>
 
 #include "slamvdb/core/se3.hpp"
+#include "slamvdb/localization/preprocessing.hpp"
 
 namespace slamvdb::localization {
 
@@ -115,6 +116,32 @@ AlignmentQuality alignment_quality(const std::vector<Vec3d>& source, const Voxel
   q.inliers = s.inliers;
   q.inlier_rmse = s.inliers ? std::sqrt(s.sq / static_cast<double>(s.inliers)) : 0.0;
   return q;
+}
+
+std::optional<Pose> align_coarse_to_fine(const std::vector<Vec3d>& source, const VoxelHashMap& coarse_target,
+                                         const VoxelHashMap& fine_target, const Pose& guess, double voxel) {
+  const std::vector<Vec3d> fine_source = voxel_downsample(source, 2.0 * voxel);
+  const std::vector<Vec3d> coarse_source = voxel_downsample(source, 4.0 * voxel);
+  struct Stage {
+    const VoxelHashMap* target;
+    const std::vector<Vec3d>* source;
+    double max_distance;
+  };
+  const Stage stages[] = {{&coarse_target, &coarse_source, 9.0 * voxel}, {&coarse_target, &coarse_source, 4.0 * voxel},
+                          {&fine_target, &fine_source, 2.0 * voxel}, {&fine_target, &fine_source, voxel}};
+  Pose T = guess;
+  for (const Stage& stage : stages) {
+    IcpOptions icp;
+    icp.max_correspondence_distance = stage.max_distance;
+    icp.kernel_scale = stage.max_distance / 9.0;
+    icp.max_iterations = 50;
+    icp.convergence = 1e-3;
+    icp.min_correspondences = 50;
+    const IcpResult r = align_point_to_point(*stage.source, *stage.target, T, icp);
+    if (!r.enough_correspondences) return std::nullopt;
+    T = r.T_target_source;
+  }
+  return T;
 }
 
 }  // namespace slamvdb::localization

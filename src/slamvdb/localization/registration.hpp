@@ -2,6 +2,7 @@
 // Robust point-to-point ICP against a VoxelHashMap (Gauss-Newton on SE(3), Geman-McClure
 // weights), parallel over the points with a deterministic TBB reduction.
 #include <cstddef>
+#include <optional>
 #include <vector>
 
 #include "slamvdb/core/types.hpp"
@@ -28,6 +29,14 @@ struct IcpResult {
 // Aligns `source` (sensor frame) to `target`, starting from `initial_guess` (T_target_source).
 IcpResult align_point_to_point(const std::vector<Vec3d>& source, const VoxelHashMap& target, const Pose& initial_guess,
                                const IcpOptions& options);
+
+// Coarse to fine, for a guess that may be metres off (ScanContext gives a yaw only): four ICP
+// stages with correspondence distances 9v, 4v, 2v and v, the first two on `coarse_target` (3v
+// voxels) with the source at 4v, the last two on `fine_target` (v voxels) with the source at 2v,
+// where v is `voxel`, the clouds' resolution. Shared by the loop closer and the alignment of
+// sessions. Returns T_target_source, or nothing when a stage finds too few correspondences.
+std::optional<Pose> align_coarse_to_fine(const std::vector<Vec3d>& source, const VoxelHashMap& coarse_target,
+                                         const VoxelHashMap& fine_target, const Pose& guess, double voxel);
 
 struct AlignmentQuality {
   std::size_t points = 0;

@@ -1,0 +1,323 @@
+#include "slamvdb/sessions/session_alignment.hpp"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <optional>
+#include <set>
+
+#include "slamvdb/core/error.hpp"
+#include "slamvdb/localization/preprocessing.hpp"
+#include "slamvdb/localization/registration.hpp"
+#include "slamvdb/localization/voxel_hash_map.hpp"
+#include "slamvdb/sessions/surface_refinement.hpp"
+
+namespace slamvdb::sessions {
+
+using localization::VoxelHashMap;
+
+void AlignmentConfig::validate() const {
+  const auto require = [](bool ok, const std::string& what) {
+    if (!ok) throw Error("invalid alignment setting: " + what);
+  };
+  places.validate();
+  require(ring_key_neighbours > 0 && candidates_per_place > 0, "ring-key neighbours and candidates per place must be > 0");
+  require(max_descriptor_distance > 0.0 && max_descriptor_distance <= 1.0, "max descriptor distance must be in (0, 1]");
+  require(inlier_distance > 0.0 && max_rmse > 0.0, "inlier distance and max RMSE must be > 0");
+  require(min_overlap > 0.0 && min_overlap <= 1.0, fmt::format("min overlap {} must be in (0, 1]", min_overlap));
+  require(min_structure_overlap >= 0.0 && min_structure_overlap <= 1.0, "min structure overlap must be in [0, 1]");
+  require(refine_voxel > 0.0, fmt::format("refine voxel {} m must be > 0", refine_voxel));
+  require(min_refined_overlap >= 0.0 && min_refined_overlap <= 1.0,
+          fmt::format("min refined overlap {} must be in [0, 1]", min_refined_overlap));
+  consensus.validate();
+  if (prior) {
+    require(prior->radius > 0.0 && prior->max_rotation > 0.0, "the prior's radius and rotation must be > 0");
+    require(prior->T_base_other.matrix().allFinite(), "the prior must be finite");
+  }
+}
+
+const char* to_string(PairRejection reason) {
+  switch (reason) {
+    case PairRejection::kIcpFailed: return "ICP failed";
+    case PairRejection::kLowOverlap: return "low overlap";
+    case PairRejection::kHighRmse: return "high RMSE";
+    case PairRejection::kTooLittleStructure: return "too little structure";
+    case PairRejection::kLowStructureOverlap: return "low structure overlap";
+    case PairRejection::kAgainstPrior: return "against the prior";
+    case PairRejection::kCount: break;
+  }
+  return "?";
+}
+
+namespace {
+
+struct AlignmentSession {
+  const std::vector<SessionSubmap>* submaps;
+  std::vector<std::vector<Vec3d>> clouds;        // thinned to the places' cloud voxel, submap frame
+  std::vector<std::vector<Vec3d>> dense_clouds;  // thinned to the refinement voxel, submap frame
+
+  std::vector<Place> places;
+
+  AlignmentSession(const std::vector<SessionSubmap>& s, const AlignmentConfig& config) : submaps(&s) {
+    clouds.reserve(s.size());
+    PlaceConfig dense = config.places;
+    dense.cloud_voxel = config.refine_voxel;
+    for (const SessionSubmap& submap : s) {
+      clouds.push_back(thinned_cloud(submap, config.places));
+      dense_clouds.push_back(thinned_cloud(submap, dense));
+    }
+    places = make_places(clouds, config.places);
+  }
+  Pose T_world_place(std::size_t place) const {
+    const Place& p = places[place];
+    return (*submaps)[p.submap].T_world_submap * p.T_submap_place();
+  }
+  // The place's voxels within `radius`, in the place frame (z above its ground level).
+  std::vector<Vec3d> around(std::size_t place, double radius) const {
+    return points_around(clouds[places[place].submap], places[place], radius);
+  }
+  std::vector<Vec3d> dense_around(std::size_t place, double radius) const {
+    return points_around(dense_clouds[places[place].submap], places[place], radius);
+  }
+};
+
+Pose yaw_pose(double yaw) {
+  Pose T = Pose::Identity();
+  T.linear() = Eigen::AngleAxisd(yaw, Vec3d::UnitZ()).toRotationMatrix();
+  return T;
+}
+
+double rotation_angle(const Pose& T) { return Eigen::AngleAxisd(T.linear()).angle(); }
+
+// Verifies one candidate pair; fills `pair` and returns nothing when it is accepted.
+std::optional<PairRejection> verify_session_pair(const AlignmentSession& base, std::size_t base_place,
+                                                 const AlignmentSession& other, std::size_t other_place,
+                                                 const Pose& T_bplace_oplace_guess,
+                                                 const AlignmentConfig& config, VerifiedPair& pair) {
+  const double voxel = config.places.cloud_voxel;
+  const double radius = config.places.scan_context.max_radius;
+  // The base side reaches farther: the guess has no translation and the place centres of the
+  // two sessions may be metres apart.
+  // Five points per coarse voxel (the loop closer keeps 20): the coarse stages only have to bring
+  // the guess within a metre, and every nearest-neighbour query reads 27 voxels' points.
+  VoxelHashMap fine(voxel, 1e9, 20), coarse(3.0 * voxel, 1e9, 5), dense(voxel, 1e9, 20);
+  const std::vector<Vec3d> target = base.around(base_place, radius + 9.0 * voxel);
+  fine.add_points(target);
+  coarse.add_points(target);
+  // The tests measure against the denser cloud (see max_rmse); ICP does not need it.
+  dense.add_points(base.dense_around(base_place, radius + 9.0 * voxel));
+  const std::vector<Vec3d> source = other.around(other_place, radius);
+  const std::optional<Pose> aligned = localization::align_coarse_to_fine(source, coarse, fine, T_bplace_oplace_guess, voxel);
+  if (!aligned) return PairRejection::kIcpFailed;
+  const localization::AlignmentQuality quality =
+      localization::alignment_quality(source, dense, *aligned, config.inlier_distance);
+  pair.overlap = quality.inlier_fraction();
+  pair.rmse = quality.inlier_rmse;
+  if (pair.overlap < config.min_overlap) return PairRejection::kLowOverlap;
+  if (pair.rmse > config.max_rmse) return PairRejection::kHighRmse;
+  std::vector<Vec3d> structure;
+  for (const Vec3d& p : source)
+    if (p.z() > config.structure_height) structure.push_back(p);
+  if (structure.size() < config.min_structure_voxels) return PairRejection::kTooLittleStructure;
+  pair.structure_overlap =
+      localization::alignment_quality(structure, dense, *aligned, config.inlier_distance).inlier_fraction();
+  if (pair.structure_overlap < config.min_structure_overlap) return PairRejection::kLowStructureOverlap;
+  pair.base_place = base_place;
+  pair.other_place = other_place;
+  pair.base_submap_id = (*base.submaps)[base.places[base_place].submap].id;
+  pair.other_submap_id = (*other.submaps)[other.places[other_place].submap].id;
+  pair.other_place_world = other.T_world_place(other_place).translation();
+  pair.T_base_other = base.T_world_place(base_place) * *aligned * other.T_world_place(other_place).inverse();
+  return std::nullopt;
+}
+
+// The loop closer's consistency test with a prior in place of odometry.
+bool agrees_with_prior(const VerifiedPair& pair, const AlignmentPrior& prior) {
+  const Vec3d& x = pair.other_place_world;
+  return (pair.T_base_other * x - prior.T_base_other * x).norm() <= prior.radius &&
+         rotation_angle(prior.T_base_other.inverse() * pair.T_base_other) <= prior.max_rotation;
+}
+
+// Every submap's voxels (thinned to `voxel`) within `radius` (horizontally) of any of the places,
+// in the world frame of the session. All submaps, not only the places' own: a place's
+// surroundings cut at its submap's edge would pull the other session's points inwards.
+std::vector<Vec3d> session_cloud_near(const AlignmentSession& session, const std::set<std::size_t>& places,
+                                      double radius, double voxel) {
+  std::vector<Eigen::Vector2d> centres;
+  for (const std::size_t p : places) centres.push_back(session.T_world_place(p).translation().head<2>());
+  const double r2 = radius * radius;
+  std::vector<Vec3d> out;
+  for (std::size_t i = 0; i < session.submaps->size(); ++i) {
+    const Pose& T_world_submap = (*session.submaps)[i].T_world_submap;
+    for (const Vec3d& x_submap : session.dense_clouds[i]) {
+      const Vec3d x = T_world_submap * x_submap;
+      if (std::any_of(centres.begin(), centres.end(),
+                      [&](const Eigen::Vector2d& c) { return (x.head<2>() - c).squaredNorm() <= r2; }))
+        out.push_back(x);
+    }
+  }
+  return localization::voxel_downsample(out, voxel);
+}
+
+// Every `keep_one_in`-th point on average, chosen by a hash of its index: a subset with no
+// geometric pattern. Thinning by keeping the first point of each coarser voxel picks, from
+// voxels stored in key order, the same corner of every coarse cell, and that biased the
+// refinement by 0.035 m along the drive (on sloped ground the kept voxels sit on one side).
+std::vector<Vec3d> unbiased_subset(const std::vector<Vec3d>& points, uint64_t keep_one_in) {
+  std::vector<Vec3d> out;
+  out.reserve(points.size() / keep_one_in + 1);
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    uint64_t z = (static_cast<uint64_t>(i) + 1) * 0x9E3779B97F4A7C15ULL;  // splitmix64's finaliser
+    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ULL;
+    z = (z ^ (z >> 27)) * 0x94D049BB133111EBULL;
+    if ((z ^ (z >> 31)) % keep_one_in == 0) out.push_back(points[i]);
+  }
+  return out;
+}
+
+// Refines the winner with one ICP over all its places (world frames) at the refinement
+// resolution, from 2 cloud voxels down to one refinement voxel.
+Pose refine_alignment(const AlignmentSession& base, const AlignmentSession& other, const std::vector<VerifiedPair>& pairs,
+                      const std::vector<std::size_t>& winners, const Pose& start, const AlignmentConfig& config,
+                      SessionAlignment& result) {
+  const double voxel = config.refine_voxel;
+  const double radius = config.places.scan_context.max_radius;
+  std::set<std::size_t> base_places, other_places;
+  for (const std::size_t i : winners) base_places.insert(pairs[i].base_place), other_places.insert(pairs[i].other_place);
+  // The base reaches farther than the other session's places, so that every point of those
+  // finds its true neighbour.
+  const std::vector<Vec3d> base_points = session_cloud_near(base, base_places, radius + 10.0, voxel);
+  VoxelHashMap target(voxel, 1e9, 20);
+  target.add_points(base_points);
+  const std::vector<Vec3d> other_points = session_cloud_near(other, other_places, radius, voxel);
+  // The source at twice the cloud voxel: the dense target gives each of its points a near
+  // neighbour, and every point costs 27 hash look-ups per iteration (the refinement was half
+  // the alignment's time with the source at the cloud voxel, for no gain in accuracy).
+  const std::vector<Vec3d> source = localization::voxel_downsample(other_points, 2.0 * config.places.cloud_voxel);
+  Pose T = start;
+  for (const double distance : {2.0 * config.places.cloud_voxel, config.places.cloud_voxel, voxel}) {
+    localization::IcpOptions icp;
+    icp.max_correspondence_distance = distance;
+    icp.kernel_scale = distance / 9.0;
+    icp.max_iterations = 30;
+    icp.convergence = 1e-5;
+    icp.min_correspondences = 50;
+    const localization::IcpResult r = localization::align_point_to_point(source, target, T, icp);
+    if (!r.enough_correspondences) break;  // keep the last good transform
+    T = r.T_target_source;
+  }
+  if (config.surface_refinement) {
+    // Point-to-point between two voxel-centre lattices locks them together (surface_refinement.hpp):
+    // the last step puts the other session's voxels on the base's surface planes: a quarter of
+    // them (each a voxel centre as stored), picked without a geometric pattern.
+    SurfaceRefinementConfig surface;
+    surface.voxel = voxel;
+    surface.normal_radius = 2.4 * voxel;
+    surface.max_distance = voxel;
+    const std::vector<Vec3d> surface_source = unbiased_subset(other_points, 4);
+    std::vector<Vec3d> surface_start;
+    surface_start.reserve(surface_source.size());
+    for (const Vec3d& p : surface_source) surface_start.push_back(T * p);
+    const SurfacePlanes planes(base_points, surface_start, surface);
+    const SurfaceRefinement refined = refine_on_surface(surface_source, planes, T, surface);
+    if (refined.ok) T = refined.T_base_other;
+  }
+  const localization::AlignmentQuality quality = localization::alignment_quality(source, target, T, config.inlier_distance);
+  result.overlap = quality.inlier_fraction();
+  result.rmse = quality.inlier_rmse;
+  return T;
+}
+
+}  // namespace
+
+SessionAlignment align_sessions(const std::vector<SessionSubmap>& base_submaps,
+                                const std::vector<SessionSubmap>& other_submaps, const AlignmentConfig& config) {
+  config.validate();
+  const AlignmentSession base(base_submaps, config), other(other_submaps, config);
+  SessionAlignment result;
+  result.base_places = base.places.size();
+  result.other_places = other.places.size();
+
+  localization::ScanContextDatabase database(config.places.scan_context);
+  for (const Place& p : base.places) database.add(p.descriptor);
+  const auto verify = [&](std::size_t i, std::size_t j, const Pose& guess, double descriptor_distance) {
+    ++result.candidate_pairs;
+    VerifiedPair pair;
+    pair.descriptor_distance = descriptor_distance;
+    std::optional<PairRejection> rejection = verify_session_pair(base, i, other, j, guess, config, pair);
+    if (!rejection && config.prior && !agrees_with_prior(pair, *config.prior)) rejection = PairRejection::kAgainstPrior;
+    if (rejection) {
+      ++result.rejections[static_cast<std::size_t>(*rejection)];
+      return;
+    }
+    result.verified.push_back(pair);
+  };
+  for (std::size_t j = 0; j < other.places.size(); ++j) {
+    if (config.prior) {
+      // The base places nearest to where the prior puts this place. The guess still comes from
+      // the descriptors (the places' centres and the ScanContext yaw): places are modes of the
+      // same surfaces, closer than the prior's metres, and ICP from a guess metres off slides
+      // along the ground.
+      const Pose T_base_oplace = config.prior->T_base_other * other.T_world_place(j);
+      std::vector<std::pair<double, std::size_t>> near;
+      for (std::size_t i = 0; i < base.places.size(); ++i) {
+        const double d = (base.T_world_place(i).translation() - T_base_oplace.translation()).head<2>().norm();
+        if (d <= config.prior->radius) near.push_back({d, i});
+      }
+      std::sort(near.begin(), near.end());
+      for (std::size_t k = 0; k < near.size() && k < config.candidates_per_place; ++k) {
+        const localization::ScanContextMatch match = localization::compare_scan_contexts(
+            other.places[j].descriptor, base.places[near[k].second].descriptor, config.places.scan_context);
+        verify(near[k].second, j, yaw_pose(match.yaw), match.distance);
+      }
+      continue;
+    }
+    if (database.size() == 0) break;
+    const auto candidates = database.query(other.places[j].descriptor, database.size(), config.ring_key_neighbours,
+                                           config.max_descriptor_distance);
+    for (std::size_t k = 0; k < candidates.size() && k < config.candidates_per_place; ++k)
+      verify(candidates[k].index, j, yaw_pose(candidates[k].match.yaw), candidates[k].match.distance);
+  }
+  const std::vector<VerifiedPair>& pairs = result.verified;
+  if (pairs.empty()) {
+    result.refused = fmt::format(
+        "the maps do not overlap: none of {} candidate pairs between {} base and {} other places was verified",
+        result.candidate_pairs, result.base_places, result.other_places);
+    return result;
+  }
+
+  const PairConsensus consensus = find_pair_consensus(pairs, config.consensus);
+  result.consistent = consensus.winners;
+  result.rival_pairs = consensus.rival_pairs;
+  if (!consensus.refused.empty()) {
+    result.refused = fmt::format("{} (of {} candidate pairs)", consensus.refused, result.candidate_pairs);
+    return result;
+  }
+  const std::vector<std::size_t>& winners = consensus.winners;
+  const std::size_t best = consensus.best;
+  result.T_base_other = refine_alignment(base, other, pairs, winners, pairs[best].T_base_other, config, result);
+  if (result.overlap < config.min_refined_overlap) {
+    result.refused = fmt::format(
+        "the maps do not match around the places the pairs agree on: {} consistent pairs, but only {:.0f}% of the "
+        "other map's voxels near them lie on the base's after refinement (at least {:.0f}% needed; different places "
+        "that look alike?)",
+        winners.size(), 100.0 * result.overlap, 100.0 * config.min_refined_overlap);
+    return result;
+  }
+  // Spread of the winning pairs about the result, as the standard error of their mean.
+  double sum_t = 0.0, sum_r = 0.0;
+  for (const std::size_t i : winners) {
+    const Vec3d& x = pairs[i].other_place_world;
+    sum_t += (result.T_base_other * x - pairs[i].T_base_other * x).squaredNorm();
+    sum_r += std::pow(rotation_angle(result.T_base_other.inverse() * pairs[i].T_base_other), 2);
+  }
+  const double n = static_cast<double>(winners.size());
+  result.sigma_translation = std::sqrt(sum_t / n) / std::sqrt(n);
+  result.sigma_rotation = std::sqrt(sum_r / n) / std::sqrt(n);
+  result.aligned = true;
+  return result;
+}
+
+}  // namespace slamvdb::sessions
