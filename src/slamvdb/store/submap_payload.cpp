@@ -14,32 +14,11 @@
 #include "slamvdb/store/sqlite_db.hpp"  // Crc
 
 namespace slamvdb::store {
-namespace {
 
-static_assert(std::endian::native == std::endian::little, "map blobs hold host-order numbers, which must be LE");
+// Named (not anonymous): OccupancyRowReader::Codec, declared in the header, derives from it.
+namespace payload_detail {
 
 constexpr std::size_t kBlockBytes = kBlockVoxels * sizeof(float);
-// Block keys are shifted by 3 bits into voxel keys, which stay within the grid extent (keys.hpp).
-constexpr int64_t kMaxBlockCoordinate = static_cast<int64_t>(kMaxGridCoordinate) >> kBlockBits;
-
-// True when every stored value is finite (fp16: exponent not all ones; fp32 likewise).
-bool embeddings_finite(const std::byte* data, std::size_t values, EmbeddingPrecision precision) {
-  unsigned bad = 0;  // branch-free, so that it vectorises
-  if (precision == EmbeddingPrecision::kFloat16) {
-    for (std::size_t i = 0; i < values; ++i) {
-      uint16_t h;
-      std::memcpy(&h, data + 2 * i, 2);
-      bad |= (h & 0x7c00u) == 0x7c00u;
-    }
-  } else {
-    for (std::size_t i = 0; i < values; ++i) {
-      uint32_t f;
-      std::memcpy(&f, data + 4 * i, 4);
-      bad |= (f & 0x7f800000u) == 0x7f800000u;
-    }
-  }
-  return !bad;
-}
 
 // Occupancy blocks are compressed with raw deflate (version 2): the zlib wrapper's Adler-32 would
 // check what the row's CRC already checks, at 7% of the load time. The streams are reused: a
@@ -89,6 +68,37 @@ class BlockCodec {
   std::vector<std::byte> out_;
 };
 
+}  // namespace payload_detail
+
+namespace {
+
+using payload_detail::BlockCodec;
+using payload_detail::kBlockBytes;
+
+static_assert(std::endian::native == std::endian::little, "map blobs hold host-order numbers, which must be LE");
+
+// Block keys are shifted by 3 bits into voxel keys, which stay within the grid extent (keys.hpp).
+constexpr int64_t kMaxBlockCoordinate = static_cast<int64_t>(kMaxGridCoordinate) >> kBlockBits;
+
+// True when every stored value is finite (fp16: exponent not all ones; fp32 likewise).
+bool embeddings_finite(const std::byte* data, std::size_t values, EmbeddingPrecision precision) {
+  unsigned bad = 0;  // branch-free, so that it vectorises
+  if (precision == EmbeddingPrecision::kFloat16) {
+    for (std::size_t i = 0; i < values; ++i) {
+      uint16_t h;
+      std::memcpy(&h, data + 2 * i, 2);
+      bad |= (h & 0x7c00u) == 0x7c00u;
+    }
+  } else {
+    for (std::size_t i = 0; i < values; ++i) {
+      uint32_t f;
+      std::memcpy(&f, data + 4 * i, 4);
+      bad |= (f & 0x7f800000u) == 0x7f800000u;
+    }
+  }
+  return !bad;
+}
+
 // Whether every log-odds is unknown (NaN) or inside the clamping range; branch-free, so it vectorises.
 bool log_odds_possible(const float* v, float lo, float hi) {
   int bad = 0;
@@ -98,7 +108,7 @@ bool log_odds_possible(const float* v, float lo, float hi) {
 
 }  // namespace
 
-struct OccupancyRowReader::Codec : BlockCodec {};
+struct OccupancyRowReader::Codec : payload_detail::BlockCodec {};
 
 PayloadBytes encode_submap_payload(const Submap& submap, EmbeddingPrecision precision,
                                    const std::function<void(const OccupancyRow&)>& occupancy_row,
