@@ -14,6 +14,8 @@ scripts/build_asan.sh
 # a deeper local run with ASAN_OPTIONS=...:detect_stack_use_after_return=1.
 export ASAN_OPTIONS=${ASAN_OPTIONS:-abort_on_error=1:detect_leaks=1:strict_string_checks=1}
 export UBSAN_OPTIONS=${UBSAN_OPTIONS:-halt_on_error=1:print_stacktrace=1}
+# Leaks inside third-party libraries' error paths only (the file says which and why).
+export LSAN_OPTIONS=${LSAN_OPTIONS:-suppressions=$PWD/scripts/lsan_suppressions.txt:print_suppressions=0}
 # The few tests that simulate and register long LiDAR drives take a shorter part of them
 # (src/slamvdb/testing/test_scale.hpp); the Release suite runs them at full size.
 export SLAMVDB_TEST_SCALE=${SLAMVDB_TEST_SCALE:-sanitizer}
