@@ -14,6 +14,7 @@
 #include "slamvdb/store/map_store.hpp"
 #include "slamvdb/testing/run_command.hpp"
 #include "slamvdb/testing/simulated_sessions.hpp"
+#include "slamvdb/testing/test_scale.hpp"
 
 namespace slamvdb::testing {
 namespace {
@@ -22,6 +23,13 @@ namespace fs = std::filesystem;
 
 // The other session: turned 37 degrees, moved, 1.35 m higher (voxel lattices 0.10 m apart in z).
 Pose align_command_other_world() { return make_align_test_pose(37.0, Vec3d(40.0, -25.0, 1.35)); }
+
+// Where the other maps' drives end (metres of route). The sanitizer run (SLAMVDB_TEST_SCALE) writes
+// one 50 m submap of each instead of two: the command's time is in verifying candidate pairs, 3 per
+// place of the other map, and under ASan each test took 40 s. What the command is checked for here
+// (the pose, the moved anchors, the refusal and its reason) holds on one submap as on two.
+int align_command_other_end() { return test_size(100, 70); }
+int align_command_unrelated_end() { return test_size(100, 50); }
 
 class AlignCommand : public ::testing::Test {
  public:
@@ -32,7 +40,7 @@ class AlignCommand : public ::testing::Test {
     const AlignTestWorld world = make_align_world(7, 100);
     save_map(base(), make_align_session_map(make_align_session(world, Pose::Identity(), 0, 100),
                                             "SIMULATED terrain seed 7, session A"));
-    save_map(other(), make_align_session_map(make_align_session(world, align_command_other_world(), 20, 100),
+    save_map(other(), make_align_session_map(make_align_session(world, align_command_other_world(), 20, align_command_other_end()),
                                              "SIMULATED terrain seed 7, session B"));
   }
   static void TearDownTestSuite() { fs::remove_all(dir_); }
@@ -102,9 +110,9 @@ TEST_F(AlignCommand, RecoversThePoseAndWritesTheOtherMapInTheBasesWorld) {
 
 TEST_F(AlignCommand, RefusesMapsThatDoNotOverlapWithTheReason) {
   // A drive through other terrain (seed 8), as in AlignSessions.RefusesMapsThatDoNotOverlap.
-  const AlignTestWorld world_b = make_align_world(8, 100);
+  const AlignTestWorld world_b = make_align_world(8, align_command_unrelated_end());
   const fs::path a = base(), b = file("seed8.svdb"), out = file("never.svdb");
-  save_map(b, make_align_session_map(make_align_session(world_b, make_align_test_pose(-20.0, Vec3d(5, 5, 0)), 0, 100),
+  save_map(b, make_align_session_map(make_align_session(world_b, make_align_test_pose(-20.0, Vec3d(5, 5, 0)), 0, align_command_unrelated_end()),
                                      "SIMULATED terrain seed 8"));
   const CommandResult r = run_cli("align " + q(a) + " " + q(b) + " -o " + q(out), 300);
   EXPECT_EQ(r.exit_code, 1) << r.output;

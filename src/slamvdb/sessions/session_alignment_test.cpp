@@ -14,6 +14,7 @@
 #include "slamvdb/sessions/joint_graph.hpp"
 #include "slamvdb/sessions/session_alignment.hpp"
 #include "slamvdb/testing/simulated_sessions.hpp"
+#include "slamvdb/testing/test_scale.hpp"
 
 namespace slamvdb::sessions {
 namespace {
@@ -21,6 +22,15 @@ namespace {
 // Route lengths (metres), the same in the sanitizer run (SLAMVDB_TEST_SCALE): the cost is the
 // number of places (8 per submap at most), and 80 m of route gives as many as 100 m (16).
 constexpr int kRouteLength = 100;
+
+// The sanitizer run takes 4 places per submap instead of 8: the time is in verifying the
+// candidate pairs (3 per place of the other session), and under ASan each test took 35-56 s.
+// The same assertions hold with half the places; the Release suite keeps the default.
+AlignmentConfig session_alignment_test_config() {
+  AlignmentConfig config;
+  config.places.max_places_per_submap = slamvdb::testing::test_size<std::size_t>(8, 4);
+  return config;
+}
 constexpr int kOtherStart = 20;
 constexpr int kLookAlikeLength = 120;
 
@@ -78,7 +88,7 @@ TEST_F(AlignSessions, RecoversTheRigidTransformOfAMovedCopy) {
 
   const auto t0 = std::chrono::steady_clock::now();
   const std::clock_t c0 = std::clock();
-  const SessionAlignment result = align_sessions(base, other);
+  const SessionAlignment result = align_sessions(base, other, session_alignment_test_config());
   std::printf("align_sessions: %.2f s wall, %.2f s CPU\n",
               std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(),
               static_cast<double>(std::clock() - c0) / CLOCKS_PER_SEC);
@@ -125,7 +135,7 @@ TEST_F(AlignSessions, JointGraphRemovesTheOtherSessionsAnchorDrift) {
     const double k = static_cast<double>(i);
     other[i].T_world_submap = make_align_test_pose(0.3 * k, Vec3d(0.4 * k, -0.25 * k, 0.08 * k)) * other[i].T_world_submap;
   }
-  const SessionAlignment result = align_sessions(base, other);
+  const SessionAlignment result = align_sessions(base, other, session_alignment_test_config());
   ASSERT_TRUE(result.aligned) << result.refused;
   const std::map<int, Pose> corrected =
       correct_other_anchors(other, result.verified, result.consistent, result.T_base_other);
@@ -154,7 +164,7 @@ TEST_F(AlignSessions, LookAlikePlacesGiveNoFalseAlignment) {
   const std::vector<SessionSubmap>& base = maps().look_alike_base;
   const Pose& T_other_world = maps().T_look_alike_other_world;
   const std::vector<SessionSubmap>& other = maps().look_alike_other;
-  const SessionAlignment result = align_sessions(base, other);
+  const SessionAlignment result = align_sessions(base, other, session_alignment_test_config());
   const Pose expected = T_other_world.inverse();
   if (result.aligned) {  // then it must be the true alignment, not a period away
     const Vec3d x = T_other_world * world.route[world.route.size() / 2];
@@ -176,7 +186,7 @@ TEST_F(AlignSessions, APriorResolvesLookAlikePlaces) {
   const Pose& T_other_world = maps().T_look_alike_other_world;
   const std::vector<SessionSubmap>& other = maps().look_alike_other;
   const Pose expected = T_other_world.inverse();
-  AlignmentConfig config;
+  AlignmentConfig config = session_alignment_test_config();
   config.prior = AlignmentPrior{make_align_test_pose(1.5, Vec3d(2.0, -1.5, 0.0)) * expected, 10.0, 0.52};
   const SessionAlignment result = align_sessions(base, other, config);
   for (std::size_t r = 0; r < result.rejections.size(); ++r)
@@ -199,7 +209,7 @@ TEST_F(AlignSessions, RefusesMapsThatDoNotOverlap) {
   const std::vector<SessionSubmap>& base = maps().base;
   const std::vector<SessionSubmap> other =
       make_align_session(world_b, make_align_test_pose(-20.0, Vec3d(5, 5, 0)), 0, kRouteLength);
-  const SessionAlignment result = align_sessions(base, other);
+  const SessionAlignment result = align_sessions(base, other, session_alignment_test_config());
   EXPECT_FALSE(result.aligned);
   EXPECT_FALSE(result.refused.empty());
   EXPECT_GT(result.base_places, 0u);
