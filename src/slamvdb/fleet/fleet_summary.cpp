@@ -7,7 +7,7 @@
 namespace slamvdb::fleet {
 namespace {
 
-double angle_between_units(const Eigen::VectorXd& a, const Eigen::VectorXd& b) {
+double cap_angle_between_units(const Eigen::VectorXd& a, const Eigen::VectorXd& b) {
   return std::acos(std::clamp(a.dot(b), -1.0, 1.0));
 }
 
@@ -31,7 +31,7 @@ std::optional<EmbeddingCap> embedding_cap(const SemanticLayer& layer) {
   if (units.empty() || !(sum_norm > 0)) return std::nullopt;
   const Eigen::VectorXd centre = sum / sum_norm;
   EmbeddingCap cap;
-  for (const Eigen::VectorXd& u : units) cap.radius = std::max(cap.radius, angle_between_units(centre, u));
+  for (const Eigen::VectorXd& u : units) cap.radius = std::max(cap.radius, cap_angle_between_units(centre, u));
   cap.centroid.assign(centre.data(), centre.data() + dim);
   return cap;
 }
@@ -48,7 +48,7 @@ std::optional<EmbeddingCap> enclosing_cap(std::span<const EmbeddingCap> caps) {
   if (!(sum.norm() > 0)) return std::nullopt;
   const Eigen::VectorXd centre = sum / sum.norm();
   EmbeddingCap out;
-  for (const EmbeddingCap& c : caps) out.radius = std::max(out.radius, angle_between_units(centre, as_unit(c)) + c.radius);
+  for (const EmbeddingCap& c : caps) out.radius = std::max(out.radius, cap_angle_between_units(centre, as_unit(c)) + c.radius);
   out.radius = std::min(out.radius, std::numbers::pi);
   out.centroid.assign(centre.data(), centre.data() + dim);
   return out;
@@ -58,7 +58,7 @@ double cap_cosine_bound(const EmbeddingCap& cap, const Eigen::VectorXf& q) {
   if (cap.radius >= std::numbers::pi / 2 || static_cast<Eigen::Index>(cap.centroid.size()) != q.size()) return 1.0;
   const Eigen::VectorXd c = Eigen::Map<const Eigen::VectorXf>(cap.centroid.data(), q.size()).cast<double>();
   const Eigen::VectorXd u = q.cast<double>();
-  const double angle = angle_between_units(c / c.norm(), u / u.norm());
+  const double angle = cap_angle_between_units(c / c.norm(), u / u.norm());
   return std::min(1.0, std::cos(std::max(0.0, angle - cap.radius)) + kCapBoundMargin);
 }
 

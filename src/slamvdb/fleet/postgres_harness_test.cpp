@@ -22,7 +22,7 @@ bool harness_process_alive(long pid) {
   return stat >> pid_text >> name >> state && state != "Z";
 }
 
-bool wait_until(const std::function<bool()>& done, double seconds) {
+bool harness_wait_until(const std::function<bool()>& done, double seconds) {
   const auto deadline = std::chrono::steady_clock::now() + std::chrono::duration<double>(seconds);
   while (!done()) {
     if (std::chrono::steady_clock::now() > deadline) return false;
@@ -47,7 +47,7 @@ long start_server_in_killed_child(const std::filesystem::path& dir, bool watchdo
     }
   }
   EXPECT_GT(child, 0);
-  const bool up = wait_until([&] { return std::filesystem::exists(ready); }, 120);
+  const bool up = harness_wait_until([&] { return std::filesystem::exists(ready); }, 120);
   long postmaster = 0;
   std::ifstream(dir / "pg" / "data" / "postmaster.pid") >> postmaster;
   ::kill(child, SIGKILL);
@@ -64,8 +64,8 @@ TEST(PostgresHarness, AServerOfAKilledTestProcessIsStoppedByItsWatchdog) {
   const std::filesystem::path dir = tmp.path / "owned";
   const long postmaster = start_server_in_killed_child(dir, true);
   ASSERT_TRUE(harness_process_alive(postmaster));  // the child is gone, its server still up for now
-  EXPECT_TRUE(wait_until([&] { return !harness_process_alive(postmaster); }, 10)) << "server " << postmaster << " still runs";
-  EXPECT_TRUE(wait_until([&] { return !std::filesystem::exists(dir); }, 10)) << dir << " was not removed";
+  EXPECT_TRUE(harness_wait_until([&] { return !harness_process_alive(postmaster); }, 10)) << "server " << postmaster << " still runs";
+  EXPECT_TRUE(harness_wait_until([&] { return !std::filesystem::exists(dir); }, 10)) << dir << " was not removed";
 }
 
 TEST(PostgresHarness, StaleDirectoriesOfDeadOwnersAreSweptAndTheirServersStopped) {
@@ -83,7 +83,7 @@ TEST(PostgresHarness, StaleDirectoriesOfDeadOwnersAreSweptAndTheirServersStopped
   // pg_ctl finds the server by its data directory's postmaster.pid, which moved with it.
   EXPECT_TRUE(harness_process_alive(postmaster)) << "without a watchdog nothing stops the server";
   EXPECT_EQ(slamvdb::testing::sweep_stale_postgres_dirs(tmp.path), 1);
-  EXPECT_TRUE(wait_until([&] { return !harness_process_alive(postmaster); }, 10)) << "server " << postmaster << " still runs";
+  EXPECT_TRUE(harness_wait_until([&] { return !harness_process_alive(postmaster); }, 10)) << "server " << postmaster << " still runs";
   EXPECT_FALSE(std::filesystem::exists(dead));
   EXPECT_TRUE(std::filesystem::exists(live));
 }
