@@ -17,7 +17,6 @@ std::span<const std::byte> bytes_of(const pqxx::binarystring& b) {
   return {reinterpret_cast<const std::byte*>(b.data()), b.size()};
 }
 
-
 // The sessions (first) or the submaps (second) of the keys as a bigint[] / int[] literal.
 std::string key_array(const std::optional<std::vector<FleetSubmapKey>>& keys, bool sessions) {
   std::string out = "{";
