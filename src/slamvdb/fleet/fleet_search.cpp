@@ -94,6 +94,12 @@ PrunedRegion pull_for_search(FleetDatabase& fleet, const PullRequest& request, s
   out.report.submaps_in_region = submaps.size();
   out.report.groups = groups.size();
   if (submaps.empty()) return out;
+  if (!options.top_k && !(options.threshold > -1.0f)) {  // nothing can be skipped: one read of the region
+    fleet.pull(request, [&](PulledSubmap&& s) { out.map.add_finished_submap(s.info, std::move(s.voxels)); });
+    out.report.submaps_scored = submaps.size();
+    out.report.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    return out;
+  }
   Eigen::VectorXf q = Eigen::Map<const Eigen::VectorXf>(query.data(), static_cast<Eigen::Index>(query.size()));
   if (!(q.norm() > 0) || !q.allFinite()) throw Error("the query vector is zero or not finite");
   q.normalize();

@@ -98,6 +98,12 @@ TEST(FleetSearch, TopKOnTheFleetEqualsThePulledFileAndSkipsSubmapsThatCannotEnte
   EXPECT_EQ(above.fleet, above.file);
   EXPECT_EQ(std::count(above.fleet.begin(), above.fleet.end(), '\n'), 401);  // the two aligned patches' 200 each
   EXPECT_NE(above.fleet_output.find("2 read, 6 skipped"), std::string::npos) << above.fleet_output;
+
+  // Neither: every cell is an answer, every submap read (once).
+  const auto every = f.ask(" --top-k 0");
+  EXPECT_EQ(every.fleet, every.file);
+  EXPECT_EQ(std::count(every.fleet.begin(), every.fleet.end(), '\n'), 1601);
+  EXPECT_NE(every.fleet_output.find("8 read, 0 skipped"), std::string::npos) << every.fleet_output;
 }
 
 TEST(FleetSearch, ASubmapWithoutASummaryIsAlwaysReadAndGroupsShareABound) {
