@@ -204,14 +204,21 @@ void run(const Options& opt) {
   const std::optional<QueryRegion> region = opt.region.region();
   if (spatial && region) throw CLI::ValidationError("--bbox", "--bbox and --near limit a similarity query, not --at points");
   const std::vector<Vec3d> points = spatial ? read_points(opt) : std::vector<Vec3d>{};
-  const SemanticMap map = opt.source.read(opt.region.region());
-  if (spatial) return run_points(opt, map, points);
-
-  const Eigen::VectorXf q = build_query(opt, map);
   SearchOptions search;
   search.top_k = opt.top_k;
   search.threshold = opt.threshold;
   search.region = region;
+  // A fleet map is asked for the submaps that can hold the answer only (their summaries bound
+  // their best score); not for a PNG, which draws every occupied voxel of the region.
+  const bool picture = format == ".png" || !opt.png.empty();
+  Eigen::VectorXf q;
+  const SemanticMap map =
+      !spatial && !opt.source.db.empty() && !picture
+          ? opt.source.read_for_search(region, [&](const SemanticMap& shell) { return build_query(opt, shell); }, search, &q)
+          : opt.source.read(region);
+  if (spatial) return run_points(opt, map, points);
+
+  if (q.size() == 0) q = build_query(opt, map);
   auto results = similarity_search(map, std::span<const float>(q.data(), static_cast<std::size_t>(q.size())), search);
   // With a query set, each result also gets its class and confidence (as query --at gives them).
   std::optional<QuerySet> queries;

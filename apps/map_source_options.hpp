@@ -3,6 +3,9 @@
 // a fleet map (--db URL with --bbox or --near/--radius, and --session): PostGIS selects the
 // region's submaps and only those are read, so the answers equal those on the pulled file.
 #include <CLI/CLI.hpp>
+#include <fmt/format.h>
+
+#include <functional>
 #include <optional>
 #include <string>
 #include <vector>
@@ -10,6 +13,7 @@
 #include "option_checks.hpp"
 #include "region_options.hpp"
 #include "slamvdb/fleet/fleet_database.hpp"
+#include "slamvdb/fleet/fleet_search.hpp"
 #include "slamvdb/store/map_store.hpp"
 
 namespace slamvdb::cli {
@@ -34,6 +38,24 @@ struct MapSourceOptions {
   }
   // For messages and titles: the file, or the fleet's URL without its password.
   std::string name() const { return db.empty() ? map : fleet::redact_connection_url(db); }
+  // With --db, for a similarity search: the region's submaps that can hold the answer only
+  // (fleet/fleet_search.hpp; the search on the returned map answers as on the whole region).
+  // `build_query` gets a map without submaps in the fleet's space; its answer goes to *query.
+  // Prints how many submaps were read and skipped.
+  SemanticMap read_for_search(const std::optional<QueryRegion>& region,
+                              const std::function<Eigen::VectorXf(const SemanticMap&)>& build_query,
+                              const SearchOptions& options, Eigen::VectorXf* query) const {
+    fleet::FleetDatabase fleet(db);
+    const fleet::FleetDefinition definition = fleet.definition();
+    *query = build_query(SemanticMap(definition.params, definition.info));
+    fleet::PrunedRegion pruned = fleet::pull_for_search(
+        fleet, {region->bounds(), sessions},
+        std::span<const float>(query->data(), static_cast<std::size_t>(query->size())), options);
+    const fleet::PrunedSearchReport& r = pruned.report;
+    fmt::print("fleet: {} submaps in the region, {} read, {} skipped by their summaries ({} of {} groups), {:.3f} s\n",
+               r.submaps_in_region, r.submaps_scored, r.submaps_skipped, r.groups_skipped, r.groups, r.seconds);
+    return std::move(pruned.map);
+  }
   SemanticMap read(const std::optional<QueryRegion>& region) const {
     if (db.empty()) return load_map(map);
     fleet::FleetDatabase fleet(db);

@@ -24,6 +24,20 @@ inline std::string pose_array(const Pose& T) {
   return out + "}";
 }
 
+// A text[] literal: each element double-quoted, backslash and quote escaped.
+inline std::string text_array(const std::vector<std::string>& items) {
+  std::string out = "{";
+  for (const std::string& item : items) {
+    out += out.size() > 1 ? ",\"" : "\"";
+    for (const char c : item) {
+      if (c == '"' || c == '\\') out += '\\';
+      out += c;
+    }
+    out += '"';
+  }
+  return out + "}";
+}
+
 inline std::string trimmed_message(std::string text) {
   while (!text.empty() && (text.back() == '\n' || text.back() == ' ')) text.pop_back();
   return text;

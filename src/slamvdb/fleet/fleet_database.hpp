@@ -5,6 +5,7 @@
 #include <memory>
 #include <string>
 #include <string_view>
+#include <vector>
 
 #include <functional>
 
@@ -15,7 +16,7 @@ namespace slamvdb::fleet {
 
 // The schema version this build writes and reads. Older databases are migrated step by step;
 // a newer one is refused (an older slamvdb must not write rows it does not understand).
-inline constexpr int kFleetSchemaVersion = 1;
+inline constexpr int kFleetSchemaVersion = 2;  // 2: per-submap embedding caps
 
 struct SchemaCheck {
   int found_version = 0;  // 0: the database had no fleet schema
@@ -64,6 +65,10 @@ class FleetDatabase {
   // The region as one map in memory (the fleet's parameters; memory: the region, not the fleet),
   // for questions asked of a region without a file: query and classify --db.
   SemanticMap pull_map(const PullRequest& request);
+
+  // The catalog rows of the region's submaps (request.only ignored): keys, boxes, summaries; no
+  // payload is read. In pull's order.
+  std::vector<RegionSubmap> region_catalog(const PullRequest& request);
 
   const std::string& display_url() const { return display_url_; }
 

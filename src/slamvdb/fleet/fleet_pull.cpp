@@ -17,17 +17,12 @@ std::span<const std::byte> bytes_of(const pqxx::binarystring& b) {
   return {reinterpret_cast<const std::byte*>(b.data()), b.size()};
 }
 
-// A text[] literal: each element double-quoted, backslash and quote escaped.
-std::string text_array(const std::vector<std::string>& items) {
+// The sessions (first) or the submaps (second) of the keys as a bigint[] / int[] literal.
+std::string key_array(const std::optional<std::vector<FleetSubmapKey>>& keys, bool sessions) {
   std::string out = "{";
-  for (const std::string& item : items) {
-    out += out.size() > 1 ? ",\"" : "\"";
-    for (const char c : item) {
-      if (c == '"' || c == '\\') out += '\\';
-      out += c;
-    }
-    out += '"';
-  }
+  if (keys)
+    for (const auto& [session, submap] : *keys)
+      out += fmt::format("{}{}", out.size() > 1 ? "," : "", sessions ? session : int64_t{submap});
   return out + "}";
 }
 
@@ -93,8 +88,11 @@ PullReport FleetDatabase::pull(const PullRequest& request, const std::function<v
         "m.path_length, m.blocks, m.known_voxels, m.occupied_voxels, m.semantic_voxels, m.payload_format "
         "FROM slamvdb.submaps m JOIN slamvdb.sessions s ON s.id = m.session "
         "WHERE m.footprint && ST_MakeEnvelope($1, $2, $3, $4, 0) AND m.z_max >= $5 AND m.z_min <= $6 "
-        "AND ($7 OR s.name = ANY($8::text[])) ORDER BY s.id, m.submap",
-        b.min().x(), b.min().y(), b.max().x(), b.max().y(), b.min().z(), b.max().z(), request.sessions.empty(), names);
+        "AND ($7 OR s.name = ANY($8::text[])) "
+        "AND ($9 OR (m.session, m.submap) IN (SELECT * FROM unnest($10::bigint[], $11::int[]))) "
+        "ORDER BY s.id, m.submap",
+        b.min().x(), b.min().y(), b.max().x(), b.max().y(), b.min().z(), b.max().z(), request.sessions.empty(), names,
+        !request.only.has_value(), key_array(request.only, true), key_array(request.only, false));
     for (const pqxx::row& row : submaps) {
       const int64_t session = row[0].as<int64_t>();
       const std::string name = row[1].as<std::string>();

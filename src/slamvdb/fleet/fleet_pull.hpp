@@ -3,16 +3,32 @@
 // from every session or the named ones, in the fleet frame.
 #include <Eigen/Geometry>
 #include <cstdint>
+#include <optional>
 #include <string>
+#include <utility>
 #include <vector>
+
+#include "slamvdb/fleet/fleet_summary.hpp"
 
 #include "slamvdb/map/semantic_map.hpp"
 
 namespace slamvdb::fleet {
 
+// A submap's key in the fleet: (session id, submap id in its session).
+using FleetSubmapKey = std::pair<int64_t, int>;
+
 struct PullRequest {
   Eigen::AlignedBox3d box_fleet;      // the region (fleet frame, metres): submaps whose footprint meets it
   std::vector<std::string> sessions{};  // empty: every session
+  std::optional<std::vector<FleetSubmapKey>> only{};  // given: of those, only these submaps
+};
+
+// A submap of a region as the catalog describes it, without its payload: where it lies (fleet
+// frame) and its summary (none for rows pushed before schema version 2).
+struct RegionSubmap {
+  FleetSubmapKey key;
+  Eigen::AlignedBox3d bounds_fleet;
+  std::optional<EmbeddingCap> cap;
 };
 
 // One submap as pulled: renumbered (ids of different sessions collide), anchored in the fleet

@@ -10,6 +10,7 @@
 
 #include "slamvdb/core/error.hpp"
 #include "slamvdb/fleet/fleet_connection.hpp"
+#include "slamvdb/fleet/fleet_summary.hpp"
 #include "slamvdb/map/semantic_map.hpp"
 #include "slamvdb/store/map_rows.hpp"
 #include "slamvdb/store/submap_payload.hpp"
@@ -109,6 +110,13 @@ struct EncodedSubmap {
   store::PayloadBytes bytes;
   int64_t payload_crc = 0;  // over the rows' CRCs and the submap's own values
   Eigen::AlignedBox3d bounds_fleet;
+  std::optional<EmbeddingCap> cap;  // the summary a query prunes by (none: no usable embedding)
+  std::string centroid_array() const {  // as a real[] literal (9 digits: a float exactly)
+    std::string out = "{";
+    if (cap)
+      for (const float c : cap->centroid) out += fmt::format("{}{:.9g}", out.size() > 1 ? "," : "", c);
+    return out + "}";
+  }
 };
 
 EncodedSubmap encode(const Submap& submap, const MapParams& params, const Pose& T_fleet_session) {
@@ -129,6 +137,7 @@ EncodedSubmap encode(const Submap& submap, const MapParams& params, const Pose& 
         crc.add(r.crc).add(r.stats_crc);
       });
   out.payload_crc = crc.value();
+  out.cap = embedding_cap(submap.voxels().semantics());
   // The footprint: the box of every block's corners in the fleet frame (a rotated box is held by
   // the box of its corners; blocks, not voxels, bound it: cheaper and still a superset).
   const double block = kBlockSide * params.occupancy.voxel_size;
@@ -170,6 +179,7 @@ const std::string kUpdateCatalog =
     "time_end = CASE WHEN $4 THEN $6::float8 END, path_length = $7, "
     "footprint = ST_MakeEnvelope($8, $9, $10, $11, 0), z_min = $12, z_max = $13, blocks = $14, known_voxels = $15, "
     "occupied_voxels = $16, semantic_voxels = $17, payload_format = $18, payload_crc = $19, payload_bytes = $20, "
+    "embedding_centroid = CASE WHEN $21 THEN $22::real[] END, embedding_radius = CASE WHEN $21 THEN $23::float8 END, "
     "revision = revision + 1 WHERE session = $1 AND submap = $2";
 
 }  // namespace
@@ -218,22 +228,24 @@ PushReport FleetDatabase::push_map(const SemanticMap& map, const PushOptions& op
                                 static_cast<int64_t>(v.occupancy().num_known_voxels()),
                                 static_cast<int64_t>(v.occupancy().num_occupied_voxels()),
                                 static_cast<int64_t>(v.semantics().size()), kMapFormatVersion, e.payload_crc,
-                                total_bytes);
+                                total_bytes, e.cap.has_value(), e.centroid_array(), e.cap ? e.cap->radius : 0.0);
         };
         // The row as it is, locked: a second pusher of the same submap waits here.
         const pqxx::result existing = tx.exec_params(
             "SELECT payload_crc = $3 AND payload_format = $4, t_world_submap = $5::float8[] AND "
             "footprint = ST_MakeEnvelope($6, $7, $8, $9, 0) AND z_min = $10 AND z_max = $11 "
+            "AND (embedding_radius IS NOT NULL OR NOT $12) "
             "FROM slamvdb.submaps WHERE session = $1 AND submap = $2 FOR UPDATE",
             report.session_id, info.id, e.payload_crc, kMapFormatVersion, pose_array(info.T_world_submap),
-            b.min().x(), b.min().y(), b.max().x(), b.max().y(), b.min().z(), b.max().z());
+            b.min().x(), b.min().y(), b.max().x(), b.max().y(), b.min().z(), b.max().z(), e.cap.has_value());
         bool write_payload = true;
         if (existing.empty()) {
           values("INSERT INTO slamvdb.submaps(session, submap, t_world_submap, time_begin, time_end, path_length, "
                  "footprint, z_min, z_max, blocks, known_voxels, occupied_voxels, semantic_voxels, payload_format, "
-                 "payload_crc, payload_bytes) VALUES ($1, $2, $3::float8[], CASE WHEN $4 THEN $5::float8 END, "
-                 "CASE WHEN $4 THEN $6::float8 END, $7, ST_MakeEnvelope($8, $9, $10, $11, 0), $12, $13, $14, $15, "
-                 "$16, $17, $18, $19, $20)");
+                 "payload_crc, payload_bytes, embedding_centroid, embedding_radius) VALUES ($1, $2, $3::float8[], "
+                 "CASE WHEN $4 THEN $5::float8 END, CASE WHEN $4 THEN $6::float8 END, $7, "
+                 "ST_MakeEnvelope($8, $9, $10, $11, 0), $12, $13, $14, $15, $16, $17, $18, $19, $20, "
+                 "CASE WHEN $21 THEN $22::real[] END, CASE WHEN $21 THEN $23::float8 END)");
           ++report.submaps_added;
         } else if (existing[0][0].as<bool>()) {
           write_payload = false;

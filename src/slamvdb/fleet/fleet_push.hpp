@@ -23,7 +23,8 @@ struct PushReport {
   bool session_created = false;
   int submaps_added = 0;      // new in the fleet
   int submaps_unchanged = 0;  // already there with the same payload and anchor: nothing written
-  int anchors_moved = 0;      // same payload, new anchor or session frame: the catalog row only
+  int anchors_moved = 0;      // same payload, new anchor or session frame (or a summary a version-1
+                              // row lacked): the catalog row only
   int payloads_replaced = 0;  // the submap changed since its last push (e.g. mapped further)
   uint64_t rows_written = 0;  // payload rows inserted
   uint64_t payload_bytes = 0; // their bytes

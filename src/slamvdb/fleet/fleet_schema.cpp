@@ -77,7 +77,18 @@ CREATE TABLE slamvdb.semantics(
   FOREIGN KEY (session, submap) REFERENCES slamvdb.submaps ON DELETE CASCADE);
 )sql";
 
-constexpr std::array<const char*, kFleetSchemaVersion> kMigrations{kVersion1};
+// Version 2: the per-submap summary that lets a region query skip a submap without reading it
+// (fleet/fleet_summary.hpp): its embeddings' cap, a unit centroid (real[], the embedding
+// dimension) and the largest angle of any embedding from it (radians). NULL, the value of every
+// row pushed under version 1, means no summary: such a submap is always read.
+constexpr const char* kVersion2 = R"sql(
+ALTER TABLE slamvdb.submaps
+  ADD COLUMN embedding_centroid real[],
+  ADD COLUMN embedding_radius double precision
+    CHECK (embedding_radius IS NULL OR (embedding_radius >= 0 AND embedding_centroid IS NOT NULL));
+)sql";
+
+constexpr std::array<const char*, kFleetSchemaVersion> kMigrations{kVersion1, kVersion2};
 
 }  // namespace
 

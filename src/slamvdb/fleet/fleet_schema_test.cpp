@@ -11,6 +11,7 @@
 
 #include "slamvdb/core/error.hpp"
 #include "slamvdb/fleet/fleet_database.hpp"
+#include "slamvdb/fleet/fleet_schema.hpp"
 #include "slamvdb/testing/error_of.hpp"
 #include "slamvdb/testing/postgres_server.hpp"
 
@@ -83,6 +84,29 @@ TEST_F(FleetSchema, RobotsStartingAtOnceAllSucceedAndOneCreatesTheSchema) {
   EXPECT_EQ(sql("SELECT version FROM slamvdb.schema_info", db), std::to_string(kFleetSchemaVersion));
 }
 
+TEST_F(FleetSchema, AVersionOneDatabaseIsMigratedKeepingItsRowsWithoutSummaries) {
+  const std::string db = fresh_database();
+  // A database as a version-1 slamvdb left it: its step's SQL, its version row, one submap.
+  sql("CREATE EXTENSION postgis", db);
+  sql(fleet_migrations()[0], db);
+  sql("INSERT INTO slamvdb.schema_info(version) VALUES (1)", db);
+  sql("INSERT INTO slamvdb.sessions(name, t_fleet_session) VALUES ('old', '{1,0,0,0,0,1,0,0,0,0,1,0,0,0,0,1}')", db);
+  sql("INSERT INTO slamvdb.submaps(session, submap, t_world_submap, path_length, footprint, z_min, z_max, blocks, "
+      "known_voxels, occupied_voxels, semantic_voxels, payload_format, payload_crc, payload_bytes) SELECT id, 4, "
+      "t_fleet_session, 1, ST_MakeEnvelope(0, 0, 1, 1, 0), 0, 1, 0, 0, 0, 0, 3, 0, 0 FROM slamvdb.sessions", db);
+  FleetDatabase fleet(server_->url(db));
+  EXPECT_EQ(fleet.schema_version(), 1);
+  const SchemaCheck check = fleet.ensure_schema();
+  EXPECT_TRUE(check.migrated());
+  EXPECT_EQ(check.found_version, 1);
+  EXPECT_EQ(fleet.schema_version(), 2);
+  EXPECT_EQ(sql("SELECT version FROM slamvdb.schema_info", db), "2");
+  // The old row is kept, without a summary (so a query always reads it).
+  EXPECT_EQ(sql("SELECT submap, embedding_radius IS NULL, embedding_centroid IS NULL FROM slamvdb.submaps", db), "4|t|t");
+  EXPECT_FALSE(fleet.ensure_schema().migrated());  // a second look changes nothing
+  EXPECT_THROW(sql("UPDATE slamvdb.submaps SET embedding_radius = 0.1", db), std::runtime_error);  // no centroid
+}
+
 TEST_F(FleetSchema, ANewerSchemaIsRefusedAndLeftUntouched) {
   const std::string db = fresh_database();
   FleetDatabase(server_->url(db)).ensure_schema();
@@ -90,7 +114,9 @@ TEST_F(FleetSchema, ANewerSchemaIsRefusedAndLeftUntouched) {
   FleetDatabase fleet(server_->url(db));
   EXPECT_EQ(fleet.schema_version(), 7);
   const std::string error = slamvdb::testing::error_of([&] { fleet.ensure_schema(); });
-  EXPECT_NE(error.find("schema version 7, newer than this slamvdb's 1"), std::string::npos) << error;
+  EXPECT_NE(error.find("schema version 7, newer than this slamvdb's " + std::to_string(kFleetSchemaVersion)),
+            std::string::npos)
+      << error;
   EXPECT_EQ(sql("SELECT version FROM slamvdb.schema_info", db), "7");
 }
 

@@ -4,6 +4,9 @@
 // trust authentication for its superuser `postgres`. PostgreSQL refuses to run as root and CI runs
 // as root, so there the server runs as the unprivileged `postgres` account Debian's package
 // creates (runuser); as any other user it runs as that user.
+// A test process that aborts (a sanitizer, a crash, a kill) runs no destructor: a watchdog started
+// with each server stops it when its owner process is gone, and shared_postgres_server() sweeps
+// the directories of dead owners at start (sweep_stale_postgres_dirs), so no server outlives a run.
 #include <gtest/gtest.h>
 #include <pwd.h>
 #include <signal.h>
@@ -11,6 +14,11 @@
 #include <unistd.h>
 
 #include <cctype>
+#include <cerrno>
+#include <cstdlib>
+#include <fstream>
+#include <string_view>
+#include <thread>
 #include <filesystem>
 #include <memory>
 #include <sstream>
@@ -26,8 +34,10 @@ class PostgresServer {
  public:
   static constexpr const char* kBinDir = "/usr/lib/postgresql/15/bin";
 
-  // Creates the cluster in `dir`/pg (dir must exist) and starts it.
-  explicit PostgresServer(const std::filesystem::path& dir) : root_(dir / "pg") {
+  // Creates the cluster in `dir`/pg (dir must exist) and starts it. With `watchdog`, a detached
+  // shell loop polls this process and, once it is gone, stops the server (immediate mode) and
+  // removes `dir` and the socket directory; it ends by itself when `dir`/pg is removed.
+  explicit PostgresServer(const std::filesystem::path& dir, bool watchdog = true) : root_(dir / "pg") {
     std::filesystem::create_directories(root_);
     // The socket's own short directory: a Unix socket path holds at most 107 bytes.
     std::string socket_template = (std::filesystem::temp_directory_path() / "svdb-pg-XXXXXX").string();
@@ -42,6 +52,7 @@ class PostgresServer {
       as_user_ = "runuser -u postgres -- ";
     }
     run("initdb -D " + quote_path(data()) + " -A trust -U postgres -E UTF8 --no-sync --no-instructions", 120);
+    if (watchdog) start_watchdog(dir);
     start();
   }
   ~PostgresServer() {
@@ -113,6 +124,16 @@ class PostgresServer {
 
  private:
   static std::string bin(const std::string& name) { return std::string(kBinDir) + "/" + name; }
+  // setsid: the loop is in its own session, so a signal to the test's process group spares it;
+  // std::system returns at once (the loop runs in the background, its output to /dev/null).
+  void start_watchdog(const std::filesystem::path& dir) const {
+    const std::string loop = "while kill -0 " + std::to_string(::getpid()) + " 2>/dev/null && [ -d " + quote_path(root_) +
+                             " ]; do sleep 0.2; done; if [ -d " + quote_path(root_) + " ]; then " + as_user_ +
+                             bin("pg_ctl") + " -D " + quote_path(data()) + " -m immediate -w stop; rm -rf " +
+                             quote_path(dir) + " " + quote_path(socket_dir_) + "; fi";
+    const std::string command = "setsid /bin/sh -c " + shell_quote(loop) + " </dev/null >/dev/null 2>&1 &";
+    if (std::system(command.c_str()) != 0) throw std::runtime_error("cannot start the server's watchdog");
+  }
   void run(const std::string& command, double timeout) const {
     const CommandResult r = run_command(as_user_ + bin(command), timeout);
     if (r.exit_code != 0) throw std::runtime_error(command + " failed: " + r.output);
@@ -123,6 +144,38 @@ class PostgresServer {
   bool running_ = false;
 };
 
+// The directories `parent`/slamvdb-postgres-PID whose process PID is gone (a test process that
+// aborted before its watchdog existed, or whose watchdog was killed too): their server is stopped
+// (immediate mode; its socket directory is line 5 of postmaster.pid) and the directories removed.
+// Returns how many were swept.
+inline int sweep_stale_postgres_dirs(const std::filesystem::path& parent = std::filesystem::temp_directory_path()) {
+  constexpr std::string_view kPrefix = "slamvdb-postgres-";
+  int swept = 0;
+  std::error_code error;
+  for (const auto& entry : std::filesystem::directory_iterator(parent, error)) {
+    const std::string name = entry.path().filename().string();
+    if (name.rfind(kPrefix, 0) != 0 || name.size() == kPrefix.size()) continue;
+    const std::string pid_text = name.substr(kPrefix.size());
+    if (pid_text.find_first_not_of("0123456789") != std::string::npos) continue;
+    const long owner = std::stol(pid_text);
+    if (owner <= 0 || ::kill(static_cast<pid_t>(owner), 0) == 0 || errno != ESRCH) continue;  // alive (or not ours)
+    const std::filesystem::path data = entry.path() / "pg" / "data";
+    std::ifstream pid_file(data / "postmaster.pid");
+    std::string line, socket_dir;
+    for (int i = 0; i < 5 && std::getline(pid_file, line); ++i) socket_dir = line;
+    if (std::filesystem::exists(data / "postmaster.pid"))
+      run_command(std::string(::geteuid() == 0 ? "runuser -u postgres -- " : "") + PostgresServer::kBinDir +
+                      "/pg_ctl -D " + quote_path(data) + " -m immediate -w stop",
+                  60);
+    std::error_code ignored;
+    if (socket_dir.rfind((std::filesystem::temp_directory_path() / "svdb-pg-").string(), 0) == 0)
+      std::filesystem::remove_all(socket_dir, ignored);
+    std::filesystem::remove_all(entry.path(), ignored);
+    ++swept;
+  }
+  return swept;
+}
+
 // One server for the whole test process: started on first use (about 1 s), stopped and removed
 // at exit. Tests keep apart by each using its own database (fresh_test_database).
 inline PostgresServer& shared_postgres_server() {
@@ -130,6 +183,7 @@ inline PostgresServer& shared_postgres_server() {
     std::filesystem::path dir = std::filesystem::temp_directory_path() / ("slamvdb-postgres-" + std::to_string(::getpid()));
     std::unique_ptr<PostgresServer> server;
     Owner() {
+      sweep_stale_postgres_dirs();
       std::filesystem::remove_all(dir);
       std::filesystem::create_directories(dir);
       server = std::make_unique<PostgresServer>(dir);
