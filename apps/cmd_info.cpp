@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <map>
 #include <memory>
 #include <optional>
 
@@ -55,15 +56,25 @@ void print_text(const std::string& path, const MapFileSummary& s, const std::opt
   if (s.semantic_voxels)
     fmt::print(" = {:.0f} B per semantic voxel (whole file: {:.0f} B)", bytes_per_voxel(s.semantic_payload_bytes, s.semantic_voxels),
                bytes_per_voxel(s.file_bytes, s.semantic_voxels));
-  fmt::print("\nsubmaps    {} (a new one every {} of path)\n", s.submaps.size(),
+  const std::map<int, std::size_t> counts = submaps_per_session(s);
+  fmt::print("\nsessions   {}\n", s.info.sessions.size());
+  for (const SessionInfo& session : s.info.sessions) {
+    const TimeRange& tr = session.time;
+    fmt::print("  id {:<4} {}  source {}{}  time {}  {} submaps\n", session.id, escape_control(session.name),
+               session.source.empty() ? "(not recorded)" : escape_control(session.source),
+               session.robot.empty() ? std::string() : "  robot " + escape_control(session.robot),
+               tr.empty() ? std::string("(none)") : fmt::format("{:.3f}..{:.3f} s", tr.begin, tr.end),
+               counts.at(session.id));
+  }
+  fmt::print("submaps    {} (a new one every {} of path)\n", s.submaps.size(),
              s.params.submap_length > 0 ? fmt::format("{:g} m", s.params.submap_length) : std::string("... never"));
   for (const SubmapSummary& sm : s.submaps) {
     const Pose& T = sm.info.T_world_submap;
     const Eigen::Vector3d t = T.translation(), rpy = rpy_degrees(T);
     const TimeRange& tr = sm.info.time_range;
-    fmt::print("  id {:<4} t = ({:.2f}, {:.2f}, {:.2f}) m  rpy = ({:.1f}, {:.1f}, {:.1f}) deg  time {}  path {:.1f} m  "
+    fmt::print("  id {:<4} session {}  t = ({:.2f}, {:.2f}, {:.2f}) m  rpy = ({:.1f}, {:.1f}, {:.1f}) deg  time {}  path {:.1f} m  "
                "{} known, {} occupied, {} semantic voxels\n",
-               sm.info.id, t.x(), t.y(), t.z(), rpy.x(), rpy.y(), rpy.z(),
+               sm.info.id, sm.info.session, t.x(), t.y(), t.z(), rpy.x(), rpy.y(), rpy.z(),
                tr.empty() ? std::string("(none)") : fmt::format("{:.3f}..{:.3f} s", tr.begin, tr.end),
                sm.info.path_length, sm.known_voxels, sm.occupied_voxels, sm.semantic_voxels);
   }
@@ -75,7 +86,7 @@ void print_text(const std::string& path, const MapFileSummary& s, const std::opt
 
 void add(CLI::App& root) {
   auto opt = std::make_shared<Options>();
-  auto* cmd = root.add_subcommand("info", "Show what a map file holds: voxel counts, sizes, submaps and poses, "
+  auto* cmd = root.add_subcommand("info", "Show what a map file holds: voxel counts, sizes, sessions, submaps and poses, "
                                           "voxel size, embedding dimension and precision, model, ontology, source");
   cmd->add_option("map", opt->map, "Map file (.svdb)")->required();
   cmd->add_flag("--json", opt->json, "Print JSON instead of text");

@@ -25,6 +25,7 @@ inline const std::vector<CommandOverviewLine>& command_overview() {
       {"Map", "map", "Map a dataset on its poses into a map file (.svdb)"},
       {"Map", "slam", "Map a dataset on its own odometry and loop closure"},
       {"Map", "align", "Put another session's map into a map's world (maps alone)"},
+      {"Map", "merge", "Merge aligned maps of several sessions into one map file"},
       {"Localize", "odometry", "LiDAR odometry (and loop closure): a pose per scan"},
       {"Ask", "query", "Voxels most like a text, class or vector; what is at a point"},
       {"Ask", "classify", "Label every semantic voxel with a terrain class"},

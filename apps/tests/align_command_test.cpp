@@ -94,6 +94,11 @@ TEST_F(AlignCommand, RecoversThePoseAndWritesTheOtherMapInTheBasesWorld) {
   ASSERT_EQ(after.submaps.size(), before.submaps.size());
   EXPECT_EQ(after.occupied_voxels, before.occupied_voxels);
   EXPECT_EQ(after.info.source, before.info.source);
+  // OTHER's session is kept (named after OTHER's file, where it was made), every submap in it.
+  ASSERT_EQ(after.info.sessions.size(), 1u);
+  EXPECT_EQ(after.info.sessions[0].name, "other");
+  EXPECT_EQ(after.info.sessions[0].source, before.info.sessions[0].source);
+  for (const SubmapSummary& s : after.submaps) EXPECT_EQ(s.info.session, after.info.sessions[0].id);
   double worst = 0.0;
   for (std::size_t i = 0; i < before.submaps.size(); ++i) {
     ASSERT_EQ(after.submaps[i].info.id, before.submaps[i].info.id);

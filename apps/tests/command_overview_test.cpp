@@ -20,7 +20,7 @@ TEST(CliConventions, TopLevelHelpListsTheWorkflowOneLineEach) {
   ASSERT_EQ(help.exit_code, 0) << help.output;
   std::vector<std::string> workflow = {
       "synth", "convert", "demo",  // make data
-      "map", "slam", "align",    // map
+      "map", "slam", "align", "merge",  // map
       "odometry",                // localize
       "query", "classify", "train-queries", "import-queries", "serve",  // ask
       "inspect", "info", "export",  // look

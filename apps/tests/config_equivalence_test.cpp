@@ -7,6 +7,7 @@
 #include <gtest/gtest.h>
 #include <yaml-cpp/yaml.h>
 
+#include <algorithm>
 #include <cmath>
 #include <fstream>
 #include <map>
@@ -119,7 +120,8 @@ class ConfigEquivalence : public ::testing::Test {
     for (const CLI::Option* o : cmd->get_options()) {
       const bool map_file = o->get_positional() && o->get_name() == "map" && !fleet_tried;
       if (o == tried || (!o->get_required() && !map_file)) continue;
-      if (o->get_positional()) args.push_back(needed_value(cmd->get_name(), o));
+      if (o->get_positional())  // as many values as it needs (merge: two maps or more)
+        for (int i = 0; i < std::max(1, o->get_items_expected_min()); ++i) args.push_back(needed_value(cmd->get_name(), o));
       else args.push_back(o->get_name() + "=" + needed_value(cmd->get_name(), o));
     }
     if (cmd->get_name() == "export" && tried->get_name() != "--output") args.push_back("--output=" + (tmp.path / "m.ply").string());

@@ -36,7 +36,7 @@ def read_map(path):
     assert db.execute("PRAGMA application_id").fetchone()[0] == 0x53564442  # "SVDB"
     version = db.execute("PRAGMA user_version").fetchone()[0]
     meta = dict(db.execute("SELECT key, value FROM meta"))
-    assert version == 3 and meta["format_version"] == "3", "this reader knows format version 3"
+    assert version == 4 and meta["format_version"] == "4", "this reader knows format version 4"
     voxel = float(meta["voxel_size"])
     cell = float(meta["index_cell_size"]) or voxel  # 0: the voxel size
     dim = int(meta["semantic_dim"])
@@ -61,6 +61,16 @@ def read_map(path):
                             stats=np.concatenate(stats) if stats else np.zeros((0, 2), np.float32),
                             blocks=np.array(blocks, dtype=np.int64).reshape(-1, 3), log_odds=np.array(log_odds)))
     return meta, voxel, cell, submaps
+
+
+def read_sessions(path):
+    """The sessions (format version 4): id -> (name, source, time range, submap ids)."""
+    db = sqlite3.connect(f"file:{path}?mode=ro", uri=True)
+    sessions = {sid: (name, source, (t0, t1), [])
+                for sid, name, source, t0, t1 in db.execute("SELECT id, name, source, time_begin, time_end FROM sessions")}
+    for submap, session in db.execute("SELECT submap, session FROM submap_sessions ORDER BY submap"):
+        sessions[session][3].append(submap)
+    return sessions
 
 
 def world_cells(T, keys, voxel, cell):
@@ -122,6 +132,10 @@ def occupied_cells(meta, voxel, cell, submaps):
 def test_a_map_reads_with_sqlite_and_numpy_alone(made):
     meta, voxel, cell, submaps = read_map(made / "m.svdb")
     assert len(submaps) >= 2
+    # One drive: one session, named after the file, holding every submap over the drive's time.
+    sessions = read_sessions(made / "m.svdb")
+    assert list(sessions) == [0] and sessions[0][0] == "m" and sessions[0][1] == meta["source"]
+    assert len(sessions[0][3]) == len(submaps) and sessions[0][2][0] < sessions[0][2][1]
     # The paper's rule (the default, recorded in meta) weighs every view 1: the weight sums are the counts.
     assert meta["fusion"] == "paper"
     for s in submaps:

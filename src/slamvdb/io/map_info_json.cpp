@@ -14,6 +14,13 @@ nlohmann::json time_range_json(const TimeRange& t) {
 
 }  // namespace map_info_json_detail
 
+std::map<int, std::size_t> submaps_per_session(const MapFileSummary& summary) {
+  std::map<int, std::size_t> out;
+  for (const SessionInfo& session : summary.info.sessions) out[session.id] = 0;
+  for (const SubmapSummary& submap : summary.submaps) ++out[submap.info.session];
+  return out;
+}
+
 double bytes_per_voxel(uint64_t bytes, std::size_t voxels) {
   return voxels ? static_cast<double>(bytes) / voxels : 0.0;
 }
@@ -47,6 +54,7 @@ nlohmann::json map_info_json(const std::string& path, const MapFileSummary& s, c
     for (int r = 0; r < 4; ++r) rows.push_back({m(r, 0), m(r, 1), m(r, 2), m(r, 3)});
     const Eigen::Vector3d t = T.translation(), rpy = rpy_degrees(T);
     submaps.push_back({{"id", sm.info.id},
+                       {"session", sm.info.session},
                        {"T_world_submap", rows},
                        {"translation", {t.x(), t.y(), t.z()}},
                        {"rpy_deg", {rpy.x(), rpy.y(), rpy.z()}},
@@ -57,6 +65,15 @@ nlohmann::json map_info_json(const std::string& path, const MapFileSummary& s, c
                        {"occupied_voxels", sm.occupied_voxels},
                        {"semantic_voxels", sm.semantic_voxels}});
   }
+  const std::map<int, std::size_t> counts = submaps_per_session(s);
+  nlohmann::json sessions = nlohmann::json::array();
+  for (const SessionInfo& session : s.info.sessions)
+    sessions.push_back({{"id", session.id},
+                        {"name", session.name},
+                        {"source", session.source},
+                        {"robot", session.robot},
+                        {"time_range", map_info_json_detail::time_range_json(session.time)},
+                        {"submaps", counts.at(session.id)}});
   nlohmann::json j = {{"path", path},
           {"format_version", s.format_version},
           {"voxels", {{"known", s.known_voxels}, {"occupied", s.occupied_voxels}, {"semantic", s.semantic_voxels}}},
@@ -75,6 +92,7 @@ nlohmann::json map_info_json(const std::string& path, const MapFileSummary& s, c
           {"source", s.info.source},
           {"config", s.info.config},
           {"submap_length", s.params.submap_length},
+          {"sessions", sessions},
           {"submaps", submaps}};
   if (world)
     j["check"] = {{"ok", true},

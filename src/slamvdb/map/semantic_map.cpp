@@ -217,13 +217,15 @@ void SemanticMap::add_finished_submap(SubmapInfo info, VoxelMap voxels) {
   next_id_ = std::max(next_id_, info.id + 1);
 }
 
-void SemanticMap::remove_finished_submap(int id) {
+std::pair<SubmapInfo, VoxelMap> SemanticMap::remove_finished_submap(int id) {
   WriteLock lock(mutex_);
   const uint32_t slot = slot_of(id);
   if (!slots_[slot]->finished()) throw Error(fmt::format("submap {} is still being written; it cannot leave memory", id));
   index_.remove_submap(slot);
+  std::pair<SubmapInfo, VoxelMap> out{slots_[slot]->info_, std::move(slots_[slot]->voxels_)};
   slots_[slot].reset();
   ids_.erase(id);
+  return out;
 }
 
 std::vector<SubmapInfo> SemanticMap::submaps() const {

@@ -22,10 +22,12 @@
 #include <span>
 #include <string>
 #include <string_view>
+#include <utility>
 #include <vector>
 
 #include "slamvdb/map/colour_basis.hpp"
 #include "slamvdb/map/global_index.hpp"
+#include "slamvdb/map/session_info.hpp"
 #include "slamvdb/map/submap.hpp"
 #include "slamvdb/map/submap_merge.hpp"
 
@@ -47,6 +49,8 @@ struct MapInfo {
   // before this was recorded were made with the paper's rule.
   std::string fusion = "paper";
   std::string features{};             // the feature source's settings (the simulated encoder's failure modes)
+  // The drives the map was made of (session_info.hpp); empty: one implicit session, id 0.
+  std::vector<SessionInfo> sessions{};
 };
 
 struct MergeOptions {
@@ -102,8 +106,9 @@ class SemanticMap {
   void add_finished_submap(SubmapInfo info, VoxelMap voxels);
   // Lets a finished submap leave memory (and the index); the caller keeps it elsewhere (a
   // SubmapStore) and may add it back with add_finished_submap. Its id is never given out again.
-  // Throws Error for an unknown id or the active submap.
-  void remove_finished_submap(int id);
+  // Throws Error for an unknown id or the active submap. Returns what left (a caller may add it
+  // to another map: merging maps of sessions).
+  std::pair<SubmapInfo, VoxelMap> remove_finished_submap(int id);
 
   // ---- reading (any thread) ----
   std::vector<SubmapInfo> submaps() const;   // by id

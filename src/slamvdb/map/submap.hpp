@@ -28,6 +28,7 @@ struct SubmapInfo {
   TimeRange time_range;   // stamps of the scans and images integrated into it
   double path_length = 0; // metres driven while it was the active submap
   bool finished = false;
+  int session = 0;        // the session it was mapped in (SessionInfo::id, session_info.hpp)
 };
 
 class Submap {

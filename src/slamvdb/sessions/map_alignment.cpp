@@ -35,8 +35,7 @@ MapAlignment align_maps(const SemanticMap& base, SemanticMap& other, const Align
   out.alignment = align_sessions(base_submaps, other_submaps, config);
   if (!out.alignment.aligned) return out;
   for (const SessionSubmap& s : other_submaps) out.anchors_before[s.id] = s.T_world_submap;
-  out.anchors_after = correct_other_anchors(other_submaps, out.alignment.verified, out.alignment.consistent,
-                                            out.alignment.T_base_other);
+  out.anchors_after = correct_other_anchors(other_submaps, out.alignment);
   other.set_submap_poses(out.anchors_after);
   return out;
 }

@@ -62,6 +62,17 @@ struct AlignmentConfig {
   void validate() const;  // throws Error naming the setting
 };
 
+// The alignment re-measured on one submap of the other session alone (its voxels near its
+// winning places, refined like the whole, from the whole's result): where that submap's anchor
+// lies in the base's world, at the refinement's accuracy rather than a verification ICP's on
+// 0.5 m clouds. The joint graph's evidence (joint_graph.hpp).
+struct SubmapRefinement {
+  int other_submap_id = 0;
+  Pose T_base_other = Pose::Identity();  // T_base_submap = T_base_other * T_other_submap
+  double overlap = 0.0, rmse = 0.0;
+  std::size_t pairs = 0;                 // winning pairs found in this submap
+};
+
 enum class PairRejection {
   kIcpFailed,
   kLowOverlap,
@@ -87,6 +98,9 @@ struct SessionAlignment {
   std::size_t rival_pairs = 0;             // the largest set disjoint from the winner
   std::array<std::size_t, static_cast<std::size_t>(PairRejection::kCount)> rejections{};
   double overlap = 0.0, rmse = 0.0;        // of the refined alignment over the winning places
+  // When aligned: one per other submap with winning pairs whose own refinement reached
+  // min_refined_overlap, by submap id (the others keep only their pairs' coarse transforms).
+  std::vector<SubmapRefinement> submap_refinements;
 };
 
 // Aligns `other` to `base` (each a session's submaps, anchors in its own world). Deterministic.

@@ -34,6 +34,7 @@ std::unique_ptr<MapFileWriter> MapFileWriter::create(const fs::path& path, const
       db.exec(kSchema);
       db.exec(kIndexes);  // before the rows here: submaps are added one by one and read back by id
       write_meta(db, map_meta(params, info));
+      write_session_rows(db, sessions_to_write(info, {}, path.stem().string()));
       db.exec("COMMIT");
       db.close();
     }
@@ -84,7 +85,7 @@ void MapFileWriter::transaction(const char* what, F&& write) {
 
 void MapFileWriter::erase_submap(int id) {
   for (const char* sql : {"DELETE FROM submaps WHERE id = ?", "DELETE FROM occupancy WHERE submap = ?",
-                          "DELETE FROM semantics WHERE submap = ?"}) {
+                          "DELETE FROM semantics WHERE submap = ?", "DELETE FROM submap_sessions WHERE submap = ?"}) {
     Statement erase(*db_, sql);
     erase.bind(1, int64_t{id}).insert();
   }
@@ -144,13 +145,15 @@ MapFileSummary MapFileWriter::finish(const MapInfo& info, uint64_t memory_bytes)
     else db_->exec("DELETE FROM meta WHERE key = 'memory_bytes'");
     Statement sums(*db_,
                    "SELECT (SELECT coalesce(sum(length(log_odds)), 0) FROM occupancy), "
-                   // the statistics too, as save_map counts them (the writer writes format 3 only)
+                   // the statistics too, as save_map counts them (the writer writes the current format only)
                    "(SELECT coalesce(sum(length(keys) + length(counts) + length(embeddings) + "
                    "coalesce(length(stats), 0)), 0) FROM semantics)");
     sums.step();
     meta["occupancy_payload_bytes"] = std::to_string(sums.int64(0));
     meta["semantic_payload_bytes"] = std::to_string(sums.int64(1));
     write_meta(*db_, meta);
+    // The sessions' time ranges from the submaps written (the info's sessions, or the implicit one).
+    write_session_rows(*db_, sessions_to_write(info, read_submap_rows(*db_, kMapFormatVersion), path_.stem().string()));
   });
   MapFileSummary summary = read_map_summary(working_);
   if (stream_output_) {

@@ -51,6 +51,10 @@ CREATE TABLE occupancy(submap INTEGER NOT NULL, bx INTEGER NOT NULL, by INTEGER 
   log_odds BLOB NOT NULL, crc INTEGER NOT NULL);
 CREATE TABLE semantics(submap INTEGER NOT NULL, chunk INTEGER NOT NULL, keys BLOB NOT NULL, counts BLOB NOT NULL,
   embeddings BLOB NOT NULL, crc INTEGER NOT NULL, stats BLOB NOT NULL, stats_crc INTEGER NOT NULL);
+CREATE TABLE sessions(id INTEGER PRIMARY KEY NOT NULL, name TEXT NOT NULL, source TEXT NOT NULL, robot TEXT NOT NULL,
+  time_begin REAL, time_end REAL, crc INTEGER NOT NULL);
+CREATE TABLE submap_sessions(submap INTEGER NOT NULL, session INTEGER NOT NULL, crc INTEGER NOT NULL,
+  PRIMARY KEY(submap, session));
 )sql";
 
 const char* const kIndexes = R"sql(
@@ -76,6 +80,7 @@ void write_submap_row(Database& db, const SubmapSummary& s) {
   insert.bind_real(5, s.info.path_length).bind(6, static_cast<int64_t>(s.blocks));
   insert.bind(7, static_cast<int64_t>(s.known_voxels)).bind(8, static_cast<int64_t>(s.occupied_voxels));
   insert.bind(9, static_cast<int64_t>(s.semantic_voxels)).bind(10, submap_crc(s, pose_bytes, 2)).insert();
+  write_submap_session_row(db, s.info);
 }
 
 std::vector<SubmapSummary> read_submap_rows(Database& db, int version) {
@@ -113,6 +118,7 @@ std::vector<SubmapSummary> read_submap_rows(Database& db, int version) {
       throw Error(fmt::format("submap {} has an impossible time range or path length", id));
     submaps.push_back(s);
   }
+  if (version >= 4) read_submap_session_rows(db, submaps);
   return submaps;
 }
 

@@ -33,6 +33,22 @@ SubmapSummary summarize(const Submap& submap);
 void write_submap_row(Database& db, const SubmapSummary& summary);
 std::vector<SubmapSummary> read_submap_rows(Database& db, int format_version);
 
+// ---- sessions (format version 4; map_sessions.cpp) ----
+// The session rows a map is written with: MapInfo::sessions, or one session (id 0, named
+// `implicit_name`, the map's source) when it lists none; each session's time range the union of its
+// submaps'. Throws Error for a submap of an unlisted session, a duplicate id or an empty name.
+std::vector<SessionInfo> sessions_to_write(const MapInfo& info, const std::vector<SubmapSummary>& submaps,
+                                           const std::string& implicit_name);
+void write_session_rows(Database& db, const std::vector<SessionInfo>& sessions);  // replaces them all
+void write_submap_session_row(Database& db, const SubmapInfo& info);              // write_submap_row calls it
+// Sets each submap's session from table submap_sessions (version 4); throws Error naming the row
+// for a bad CRC, a submap with none or several, or a row of an unknown submap.
+void read_submap_session_rows(Database& db, std::vector<SubmapSummary>& submaps);
+// Version 4: the sessions table, checked (CRC, names, times, every submap's session listed).
+// Versions 1-3: one session, id 0, named `implicit_name`, of `source`, spanning the submaps.
+std::vector<SessionInfo> read_session_rows(Database& db, int format_version, const std::vector<SubmapSummary>& submaps,
+                                           const std::string& implicit_name, const std::string& source);
+
 // ---- voxels of one submap ----
 // Returns the bytes of the written blobs (occupancy compressed, semantics raw).
 PayloadBytes write_submap_voxels(Database& db, const Submap& submap, EmbeddingPrecision precision);

@@ -19,7 +19,8 @@ using namespace store;
 
 // Returns what it wrote (without file_bytes), summarised as it goes: nothing is read back (a map
 // whose content load_map would refuse is still saved, and refused when loaded).
-MapFileSummary write_database(const fs::path& file, const SemanticMap& map) {
+// `implicit_name`: the session's name when the map lists none (the map file's stem).
+MapFileSummary write_database(const fs::path& file, const SemanticMap& map, const std::string& implicit_name) {
   Database db(file, SQLITE_OPEN_READWRITE | SQLITE_OPEN_NOMUTEX);
   // No journal and no syncs: the file is private until the rename, and fsynced before it.
   db.exec(fmt::format(
@@ -44,6 +45,8 @@ MapFileSummary write_database(const fs::path& file, const SemanticMap& map) {
       const PayloadBytes p = write_submap_voxels(db, s, precision);
       payload.occupancy += p.occupancy, payload.semantics += p.semantics;
     });
+  summary.info.sessions = sessions_to_write(map.info(), summary.submaps, implicit_name);
+  write_session_rows(db, summary.info.sessions);
   db.exec(kIndexes);
   Meta meta = map_meta(map.params(), map.info());
   meta["memory_bytes"] = std::to_string(map.memory_bytes());
@@ -122,6 +125,8 @@ MapFileSummary read_summary(const fs::path& path, Database& db) {
   summary.occupancy_payload_bytes = optional_number(meta, "occupancy_payload_bytes");
   summary.semantic_payload_bytes = optional_number(meta, "semantic_payload_bytes");
   summary.submaps = read_submap_rows(db, summary.format_version);
+  summary.info.sessions =
+      read_session_rows(db, summary.format_version, summary.submaps, path.stem().string(), summary.info.source);
   for (const SubmapSummary& s : summary.submaps) {
     summary.known_voxels += s.known_voxels;
     summary.occupied_voxels += s.occupied_voxels;
@@ -148,7 +153,7 @@ MapFileSummary save_map(const fs::path& path, const SemanticMap& map) {
   return with_path_context("save map", path, [&] {
     OutputFile out(path);
     if (!out.is_stream()) remove_stale_map_temp_files(out.destination().resolved);
-    MapFileSummary summary = write_database(out.temp_path(), map);
+    MapFileSummary summary = write_database(out.temp_path(), map, path.stem().string());
     summary.file_bytes = fs::file_size(out.temp_path());
     out.commit();
     return summary;

@@ -1,5 +1,6 @@
 #include "slamvdb/store/map_store.hpp"
 
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 #include <signal.h>
 #include <sqlite3.h>
@@ -135,9 +136,10 @@ TEST_F(MapStoreTest, BadFilesGiveErrorsWithPathAndReason) {
 
   const fs::path newer = dir_ / "newer.svdb";
   write_bytes(newer, bytes);
-  set_pragma(newer, "user_version = 4");
+  set_pragma(newer, fmt::format("user_version = {}", kMapFormatVersion + 1));
   msg = load_error(newer);
-  EXPECT_NE(msg.find("map format version 4 is newer than this slamvdb supports (3); upgrade slamvdb"),
+  EXPECT_NE(msg.find(fmt::format("map format version {} is newer than this slamvdb supports ({}); upgrade slamvdb",
+                                 kMapFormatVersion + 1, kMapFormatVersion)),
             std::string::npos)
       << msg;
   EXPECT_NE(msg.find(newer.string()), std::string::npos) << msg;
@@ -215,7 +217,8 @@ TEST_F(MapStoreTest, FlippedBytesInsideBlobsFailTheCrc) {
   }
   expect_crc_error_after_flip(good, dir_ / "bad_occupancy.svdb", block_blob, "occupancy block (500, 0, 0) of submap -7");
   expect_crc_error_after_flip(good, dir_ / "bad_semantics.svdb", half_pattern, "semantic chunk 0 of submap 3");
-  expect_crc_error_after_flip(good, dir_ / "bad_meta.svdb", map.info().source, "meta entry 'source'");
+  // (the source is in the sessions table too; the model id only in meta)
+  expect_crc_error_after_flip(good, dir_ / "bad_meta.svdb", map.info().model_id, "meta entry 'model_id'");
 }
 
 }  // namespace

@@ -1,0 +1,112 @@
+// `slamvdb merge A B [...] -o SITE`: maps of different sessions that share one world (`align`)
+// as one map file holding every session's submaps, each still in its session
+// (sessions/map_merge.hpp). Inputs that cannot share a world are refused from their metadata,
+// naming the difference, before any voxel is loaded; the output is written whole or not at all.
+#include <fmt/format.h>
+
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <vector>
+
+#include "command_registry.hpp"
+#include "io_options.hpp"
+#include "option_checks.hpp"
+#include "yaml_config.hpp"
+#include "slamvdb/core/error.hpp"
+#include "slamvdb/core/output_file.hpp"
+#include "slamvdb/sessions/map_merge.hpp"
+#include "slamvdb/store/map_store.hpp"
+
+namespace slamvdb::cli::cmd_merge {
+namespace {
+
+struct Options {
+  std::vector<std::string> maps;
+  std::string output, json;
+};
+
+nlohmann::json merge_contents_json(const sessions::MapContents& c) {
+  return {{"sessions", c.sessions},
+          {"submaps", c.submaps},
+          {"occupied_voxels", c.occupied_voxels},
+          {"semantic_voxels", c.semantic_voxels},
+          {"observations", c.observations}};
+}
+
+void run(const Options& opt, const std::string& config) {
+  std::vector<MapFileSummary> summaries;
+  for (const std::string& path : opt.maps) summaries.push_back(read_map_summary(path));
+  for (std::size_t i = 1; i < summaries.size(); ++i) {
+    const std::string incompatible = sessions::merge_incompatibility(summaries[0].params, summaries[0].info,
+                                                                     summaries[i].params, summaries[i].info);
+    if (!incompatible.empty())
+      throw Error(fmt::format("cannot merge {} with {}: {} ({} not written)", opt.maps[i], opt.maps[0], incompatible,
+                              opt.output));
+  }
+  std::vector<SemanticMap> inputs;
+  for (const std::string& path : opt.maps) inputs.push_back(load_map(path));
+  sessions::MapMergeReport report;
+  SemanticMap merged = sessions::merge_session_maps(inputs, opt.maps, report);
+  MapInfo info = merged.info();
+  info.source = fmt::format("merge of {} maps: {}", opt.maps.size(), fmt::join(opt.maps, ", "));
+  info.config = config;  // how this file was made: the merge (each input file keeps its own)
+  merged.set_info(info);
+  // Nothing may be lost on the way: the merged map holds what the inputs held, count for count.
+  sessions::MapContents sum;
+  for (const sessions::MapContents& c : report.inputs) {
+    sum.sessions += c.sessions, sum.submaps += c.submaps, sum.occupied_voxels += c.occupied_voxels;
+    sum.semantic_voxels += c.semantic_voxels, sum.observations += c.observations;
+  }
+  const sessions::MapContents& m = report.merged;
+  if (m.sessions != sum.sessions || m.submaps != sum.submaps || m.occupied_voxels != sum.occupied_voxels ||
+      m.semantic_voxels != sum.semantic_voxels || m.observations != sum.observations)
+    throw Error(fmt::format("merging lost content ({} submaps, {} observations in; {} and {} out): {} not written",
+                            sum.submaps, sum.observations, m.submaps, m.observations, opt.output));
+  const MapFileSummary written = save_map(opt.output, merged);
+  for (std::size_t i = 0; i < opt.maps.size(); ++i)
+    fmt::print("input      {}: {} sessions, {} submaps, {} semantic voxels, {} observations\n", opt.maps[i],
+               report.inputs[i].sessions, report.inputs[i].submaps, report.inputs[i].semantic_voxels,
+               report.inputs[i].observations);
+  fmt::print("merged     {} sessions, {} submaps, {} occupied and {} semantic voxels, {} observations (none lost)\n",
+             m.sessions, m.submaps, m.occupied_voxels, m.semantic_voxels, m.observations);
+  fmt::print("wrote {} ({:.1f} MB)\n", opt.output, static_cast<double>(written.file_bytes) / 1e6);
+  if (!opt.json.empty()) {
+    nlohmann::json j = {{"output", opt.output}, {"merged", merge_contents_json(m)}, {"inputs", nlohmann::json::array()}};
+    for (std::size_t i = 0; i < opt.maps.size(); ++i) {
+      nlohmann::json input = merge_contents_json(report.inputs[i]);
+      input["path"] = opt.maps[i];
+      j["inputs"].push_back(input);
+    }
+    write_output_file(opt.json, j.dump(2) + "\n");
+  }
+}
+
+void add(CLI::App& root) {
+  auto opt = std::make_shared<Options>();
+  auto* cmd = root.add_subcommand(
+      "merge",
+      "Merge maps of different sessions that share one world (made so by `slamvdb align`) into one map file: every "
+      "input's submaps, each in the session it was mapped in (`info` lists them). Submaps of different sessions over "
+      "the same place stay separate submaps (queries read them together through the global index). Refuses (exit 1, "
+      "naming the difference; nothing written) maps with different voxel sizes, embedding models, embedding "
+      "dimensions, ontologies or occupancy settings.");
+  cmd->add_option("maps", opt->maps, "The maps to merge (.svdb), two or more")
+      ->required()
+      ->expected(2, -1)
+      ->check(CLI::ExistingFile);
+  cmd->add_option("-o,--output", opt->output, "The merged map file to write (.svdb)")->required();
+  cmd->add_option("--json", opt->json, "Write what each input held and what the merged map holds as JSON");
+  auto io = std::make_shared<IoOptions>(cmd);
+  io->input("maps", opt->maps);
+  io->output("-o", opt->output);
+  io->output("--json", opt->json);
+  cmd->callback([opt, io, cmd] {
+    io->check();
+    run(*opt, effective_config(*cmd));
+  });
+}
+
+const RegisterCommand reg{add};
+
+}  // namespace
+}  // namespace slamvdb::cli::cmd_merge

@@ -1,0 +1,86 @@
+#include "slamvdb/sessions/map_merge.hpp"
+
+#include <fmt/format.h>
+
+#include <map>
+#include <utility>
+
+#include "slamvdb/core/error.hpp"
+#include "slamvdb/sessions/map_alignment.hpp"
+
+namespace slamvdb::sessions {
+
+std::string merge_incompatibility(const MapParams& first_params, const MapInfo& first_info, const MapParams& params,
+                                  const MapInfo& info) {
+  std::string out = map_incompatibility(first_params, first_info, params, info);
+  if (!out.empty()) return out;
+  const OccupancyParams &a = first_params.occupancy, &b = params.occupancy;
+  const auto differ = [&](const char* what, double x, double y) {
+    if (out.empty() && x != y) out = fmt::format("the maps have different occupancy settings: {} {} and {}", what, x, y);
+  };
+  differ("log-odds hit", a.log_odds_hit, b.log_odds_hit);
+  differ("log-odds miss", a.log_odds_miss, b.log_odds_miss);
+  differ("clamp min", a.clamp_min, b.clamp_min);
+  differ("clamp max", a.clamp_max, b.clamp_max);
+  differ("occupied threshold", a.occupied_threshold, b.occupied_threshold);
+  return out;
+}
+
+MapContents map_contents(const SemanticMap& map) {
+  MapContents c;
+  c.sessions = map.info().sessions.empty() ? 1 : map.info().sessions.size();
+  c.submaps = map.num_submaps();
+  c.occupied_voxels = map.num_occupied_voxels();
+  c.semantic_voxels = map.num_semantic_voxels();
+  for (const SubmapInfo& info : map.submaps())
+    map.read_submap(info.id, [&](const Submap& s) {
+      const SemanticLayer& layer = s.voxels().semantics();
+      layer.for_each([&](SemanticLayer::Handle h) { c.observations += layer.count_of(h); });
+    });
+  return c;
+}
+
+SemanticMap merge_session_maps(std::vector<SemanticMap>& inputs, const std::vector<std::string>& labels,
+                               MapMergeReport& report) {
+  if (inputs.size() < 2 || labels.size() != inputs.size())
+    throw Error(fmt::format("merging needs two maps or more, each with a label ({} maps, {} labels)", inputs.size(),
+                            labels.size()));
+  for (std::size_t i = 1; i < inputs.size(); ++i) {
+    const std::string incompatible =
+        merge_incompatibility(inputs[0].params(), inputs[0].info(), inputs[i].params(), inputs[i].info());
+    if (!incompatible.empty())
+      throw Error(fmt::format("cannot merge {} with {}: {}", labels[i], labels[0], incompatible));
+  }
+  report = {};
+  MapInfo info = inputs[0].info();
+  info.sessions.clear();
+  std::vector<std::map<int, int>> new_session_ids(inputs.size());  // per input: old id -> merged id
+  for (std::size_t i = 0; i < inputs.size(); ++i) {
+    report.inputs.push_back(map_contents(inputs[i]));
+    // The input's sessions, renumbered in input order; an input that lists none is one session.
+    std::vector<SessionInfo> sessions = inputs[i].info().sessions;
+    if (sessions.empty()) sessions.push_back({0, labels[i], inputs[i].info().source, "", {}});
+    for (SessionInfo s : sessions) {
+      new_session_ids[i][s.id] = static_cast<int>(info.sessions.size());
+      s.id = static_cast<int>(info.sessions.size());
+      info.sessions.push_back(std::move(s));
+    }
+    for (const SubmapInfo& s : inputs[i].submaps())  // checked before any submap moves
+      if (new_session_ids[i].count(s.session) == 0)
+        throw Error(fmt::format("cannot merge {}: its submap {} belongs to session {}, which it does not list",
+                                labels[i], s.id, s.session));
+  }
+  SemanticMap merged(inputs[0].params(), info);
+  int next_id = 0;  // input order, then the input's id order
+  for (std::size_t i = 0; i < inputs.size(); ++i)
+    for (const SubmapInfo& s : inputs[i].submaps()) {
+      auto [moved, voxels] = inputs[i].remove_finished_submap(s.id);
+      moved.id = next_id++;
+      moved.session = new_session_ids[i].at(s.session);
+      merged.add_finished_submap(moved, std::move(voxels));
+    }
+  report.merged = map_contents(merged);
+  return merged;
+}
+
+}  // namespace slamvdb::sessions
