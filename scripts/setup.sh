@@ -22,6 +22,7 @@ PACKAGES=(
   libcli11-dev           # CLI
   nlohmann-json3-dev     # manifests, metadata, the server's JSON
   libcpp-httplib-dev libssl-dev  # `slamvdb serve`: HTTP server (Debian builds it with OpenSSL: optional TLS)
+  libfaiss-dev  # `slamvdb serve`: the ANN index of top-k queries (query/ann_index.cpp; k-means + centroid search)
   openssl                # the serve TLS test makes a self-signed certificate
   libyaml-cpp-dev        # transforms.yaml, ontology
   zlib1g-dev             # CLIP merge list (.gz)
