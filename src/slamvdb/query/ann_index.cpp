@@ -9,6 +9,7 @@
 #include <Eigen/Core>
 
 #include <algorithm>
+#include <bit>
 #include <chrono>
 #include <cmath>
 #include <cstdint>
@@ -141,11 +142,20 @@ std::vector<std::size_t> AnnIndex::candidates(std::span<const float> unit_query,
     return similarity[a] != similarity[b] ? similarity[a] > similarity[b] : a < b;
   });
   const std::size_t wanted = std::min(probes ? probes : m.stats.probes, lists);
-  std::vector<std::size_t> out;
-  for (std::size_t r = 0; r < lists && (r < wanted || out.size() < min_cells); ++r) {
-    const auto& list = m.lists[order[r]];
-    out.insert(out.end(), list.begin(), list.end());
+  // The lists' cells marked in a bitmap and given back in ascending position: read in the order the
+  // global index holds them, a cell's record and embedding are far more often in cache or in an
+  // open memory page than in list order (which jumps across the whole map for every cell).
+  std::vector<uint64_t> marked((m.index_size + 63) / 64, 0);
+  std::size_t count = 0;
+  for (std::size_t r = 0; r < lists && (r < wanted || count < min_cells); ++r) {
+    for (const uint32_t i : m.lists[order[r]]) marked[i >> 6] |= uint64_t{1} << (i & 63);
+    count += m.lists[order[r]].size();
   }
+  std::vector<std::size_t> out;
+  out.reserve(count);
+  for (std::size_t w = 0; w < marked.size(); ++w)
+    for (uint64_t bits = marked[w]; bits; bits &= bits - 1)
+      out.push_back(w * 64 + static_cast<std::size_t>(std::countr_zero(bits)));
   return out;
 }
 

@@ -44,7 +44,7 @@ class AnnIndex {
 
   // The global-index positions of the cells to score for `unit_query` (dim floats, norm 1): the
   // cells of the `probes` (0: the default) most similar lists, more lists while they hold fewer
-  // than `min_cells` cells. Ascending within each list.
+  // than `min_cells` cells. In ascending position (the order the global index holds them).
   std::vector<std::size_t> candidates(std::span<const float> unit_query, std::size_t probes,
                                       std::size_t min_cells) const;
   // Cells of the global index the index was built over (its size then).
