@@ -39,6 +39,7 @@ PACKAGES=(
   libceres-dev libnanoflann-dev liblzf-dev  # localization: pose graph, ScanContext k-d tree, PCD binary_compressed
   libpqxx-dev libpq-dev postgresql-15 postgresql-15-postgis-3  # the fleet map (PostgreSQL + PostGIS); tests start their own servers
   clang libclang-rt-14-dev           # sanitizer build (ASan + UBSan) and libFuzzer harnesses (scripts/fuzz.sh)
+  libomp-dev             # OpenMP for the clang builds: faiss (query/ann_index.cpp) needs it
   chromium                           # the HTML viewer's test (headless, driven by playwright-core)
   liblz4-dev libzstd-dev libbz2-dev  # recordings: lz4, zstd and bz2 compressed chunks (MCAP, ROS 1 bags, rosbag2)
   python3-rosbag python3-sensor-msgs python3-geometry-msgs python3-nav-msgs python3-tf2-msgs
