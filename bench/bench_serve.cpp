@@ -17,10 +17,12 @@
 namespace slamvdb::bench {
 namespace {
 
-const std::shared_ptr<const MapService>& serve_bench_service() {
-  static const std::shared_ptr<const MapService> service = std::make_shared<SemanticMapService>(
+// The map served with its ANN index (built once, as `serve` builds it at start; requests with
+// "exact": true scan every cell).
+const std::shared_ptr<const SemanticMapService>& serve_bench_service() {
+  static const std::shared_ptr<const SemanticMapService> service = std::make_shared<SemanticMapService>(
       std::shared_ptr<const SemanticMap>(&indexed_map(), [](const SemanticMap*) {}),
-      nlohmann::json{{"submaps", nlohmann::json::array()}});
+      nlohmann::json{{"submaps", nlohmann::json::array()}}, std::make_unique<AnnIndex>(indexed_map()));
   return service;
 }
 
@@ -33,10 +35,11 @@ Eigen::VectorXf serve_bench_query(int i) {
   return q;
 }
 
-QueryRequest serve_bench_request(int i) {
+QueryRequest serve_bench_request(int i, bool exact) {
   QueryRequest r;
   r.terms.vectors = {serve_bench_query(i)};
   r.search.top_k = 100;
+  r.exact = exact;
   return r;
 }
 
@@ -50,16 +53,51 @@ std::vector<Vec3d> serve_bench_points(std::size_t n) {
   return points;
 }
 
+// Arg: 1 for "exact": true (every cell scored), 0 through the ANN index.
 void BM_ServeQueryAnswer(benchmark::State& state) {
   AnswerContext context;
   context.map = serve_bench_service().get();
   int i = 0;
   std::size_t bytes = 0;
-  for (auto _ : state) bytes = answer_query(context, serve_bench_request(i++)).dump().size();
+  for (auto _ : state) bytes = answer_query(context, serve_bench_request(i++, state.range(0) == 1)).dump().size();
   state.counters["cells"] = static_cast<double>(context.map->semantic_cells());
   state.counters["answer_bytes"] = static_cast<double>(bytes);
 }
-BENCHMARK(BM_ServeQueryAnswer)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_ServeQueryAnswer)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond)->MeasureProcessCPUTime()->UseRealTime();
+
+// The ANN index on the bench map: build time, memory, the share of cells scored per question and
+// recall@100 against exact scoring over 52 questions (four per submap prototype).
+void BM_ServeAnnRecall(benchmark::State& state) {
+  const AnnIndex& ann = *serve_bench_service()->ann();
+  double recall = 0, scored = 0;
+  constexpr int kQuestions = 52;
+  for (auto _ : state) {
+    recall = scored = 0;
+    for (int i = 0; i < kQuestions; ++i) {
+      const Eigen::VectorXf q = serve_bench_query(i * 37);
+      SearchOptions exact;
+      exact.top_k = 100;
+      SearchOptions approximate = exact;
+      approximate.ann = &ann;
+      const auto truth = similarity_search(indexed_map(), {q.data(), 512}, exact);
+      const auto found = similarity_search(indexed_map(), {q.data(), 512}, approximate);
+      std::vector<IndexCellKey> true_cells;
+      for (const ScoredCell& c : truth) true_cells.push_back(c.cell);
+      std::sort(true_cells.begin(), true_cells.end());
+      for (const ScoredCell& c : found) recall += std::binary_search(true_cells.begin(), true_cells.end(), c.cell) ? 0.01 : 0;
+      const Eigen::VectorXf unit = q.normalized();
+      scored += static_cast<double>(ann.candidates({unit.data(), 512}, 0, 100).size());
+    }
+  }
+  const AnnIndexStats stats = ann.stats();
+  state.counters["recall_at_100"] = recall / kQuestions;
+  state.counters["share_scored"] = scored / kQuestions / static_cast<double>(stats.cells);
+  state.counters["build_s"] = stats.build_seconds;
+  state.counters["memory_MB"] = static_cast<double>(stats.memory_bytes) / 1e6;
+  state.counters["lists"] = static_cast<double>(stats.lists);
+  state.counters["probes"] = static_cast<double>(stats.probes);
+}
+BENCHMARK(BM_ServeAnnRecall)->Iterations(1)->Unit(benchmark::kMillisecond)->UseRealTime();
 
 // Arg: points per request.
 void BM_ServeAtAnswer(benchmark::State& state) {
@@ -75,11 +113,11 @@ void BM_ServeAtAnswer(benchmark::State& state) {
 }
 BENCHMARK(BM_ServeAtAnswer)->Arg(10000)->Arg(100000)->Unit(benchmark::kMillisecond)->UseRealTime();
 
-// Args: clients, requests per client, route (0: POST /api/query top 100, distinct vectors; 1:
-// POST /api/at with 10 000 points). One iteration: the whole load, bounded in count.
+// Args: clients, requests per client, route (0: POST /api/query top 100, distinct vectors, through
+// the ANN index; 1: POST /api/at with 10 000 points; 2: as 0 with "exact": true). One iteration: the whole load, bounded in count.
 void BM_ServeLoad(benchmark::State& state) {
   const int clients = static_cast<int>(state.range(0)), per_client = static_cast<int>(state.range(1));
-  const bool at = state.range(2) == 1;
+  const bool at = state.range(2) == 1, exact = state.range(2) == 2;
   ServerOptions options;
   options.port = 0;
   options.limits.max_concurrent = static_cast<std::size_t>(clients);
@@ -97,7 +135,7 @@ void BM_ServeLoad(benchmark::State& state) {
   } else {
     for (int i = 0; i < clients * per_client; ++i) {
       const Eigen::VectorXf q = serve_bench_query(i);
-      bodies.push_back(nlohmann::json({{"vector", std::vector<float>(q.data(), q.data() + q.size())}, {"top_k", 100}}).dump());
+      bodies.push_back(nlohmann::json({{"vector", std::vector<float>(q.data(), q.data() + q.size())}, {"top_k", 100}, {"exact", exact}}).dump());
     }
   }
   std::vector<double> latencies_ms;
@@ -143,6 +181,8 @@ void BM_ServeLoad(benchmark::State& state) {
 BENCHMARK(BM_ServeLoad)
     ->Args({1, 16, 0})
     ->Args({32, 4, 0})
+    ->Args({32, 16, 0})
+    ->Args({32, 4, 2})
     ->Args({8, 4, 1})
     ->Iterations(1)
     ->Unit(benchmark::kMillisecond)

@@ -1,16 +1,76 @@
-// The server's request decoding (server/request_decoding.hpp): the whole input as a POST /api/query
-// body for a 4-d map. A request is decoded or refused with RequestError (an Error); a decoded one
-// must hold what the limits promise: at most max_terms terms, texts within max_text_bytes, vectors
-// of the map's dimension with finite values, top_k within 1..max_top_k.
+// The server's request decoding (server/request_decoding.hpp). An input starting with '?' is the
+// query string of GET /api/classes and GET /api/nav-grid (name=value pairs split on '&', as the
+// HTTP layer hands them over): decode_region_params, decode_classes_request and
+// decode_nav_grid_request either refuse it with RequestError or give a region that is a finite
+// box (min <= max) and/or a ball or cylinder of finite positive radius, a confidence in 0..1, a
+// robot height in 0.1..100 and a positive finite resolution. Anything else is a POST /api/query
+// body for a 4-d map: decoded or refused; a decoded one must hold what the limits promise: at most
+// max_terms terms, texts within max_text_bytes, vectors of the map's dimension with finite values,
+// top_k within 1..max_top_k.
 #include <cmath>
 #include <cstdlib>
+#include <string>
 #include <string_view>
 
 #include "slamvdb/core/error.hpp"
 #include "slamvdb/server/request_decoding.hpp"
 
+namespace {
+
+bool fuzz_region_ok(const slamvdb::QueryRegion& region) {
+  if (!region.box && !region.near) return false;
+  if (region.box && !(region.box->min().allFinite() && region.box->max().allFinite() &&
+                      (region.box->min().array() <= region.box->max().array()).all()))
+    return false;
+  if (region.near && !(region.near->centre.allFinite() && std::isfinite(region.near->radius) && region.near->radius > 0))
+    return false;
+  return true;
+}
+
+void fuzz_get_params(std::string_view query) {
+  slamvdb::NavGridParams p;
+  for (std::size_t start = 1; start <= query.size();) {
+    const std::size_t end = std::min(query.find('&', start), query.size());
+    const std::string_view pair = query.substr(start, end - start);
+    const std::size_t eq = pair.find('=');
+    const std::string name(pair.substr(0, eq));
+    const std::string value(eq == std::string_view::npos ? std::string_view() : pair.substr(eq + 1));
+    if (name == "bbox") p.region.bbox = value;
+    if (name == "near") p.region.near = value;
+    if (name == "radius") p.region.radius = value;
+    if (name == "resolution") p.resolution = value;
+    if (name == "format") p.format = value;
+    if (name == "robot_height") p.robot_height = value;
+    if (name == "min_confidence") p.min_confidence = value;
+    start = end + 1;
+  }
+  try {
+    if (!fuzz_region_ok(slamvdb::decode_region_params(p.region, "GET /api/classes"))) std::abort();
+  } catch (const slamvdb::Error&) {
+  }
+  try {
+    const slamvdb::ClassesRequest c = slamvdb::decode_classes_request(p.region, p.min_confidence);
+    if (!fuzz_region_ok(c.region) || !(c.min_confidence >= 0 && c.min_confidence <= 1)) std::abort();
+  } catch (const slamvdb::Error&) {
+  }
+  try {
+    const slamvdb::NavGridRequest g = slamvdb::decode_nav_grid_request(p);
+    if (!fuzz_region_ok(g.region) || !(g.min_confidence >= 0 && g.min_confidence <= 1) ||
+        !(g.robot_height >= 0.1 && g.robot_height <= 100) ||
+        (g.resolution && !(std::isfinite(*g.resolution) && *g.resolution > 0)))
+      std::abort();
+  } catch (const slamvdb::Error&) {
+  }
+}
+
+}  // namespace
+
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   const std::string_view body(reinterpret_cast<const char*>(data), size);
+  if (!body.empty() && body.front() == '?') {
+    fuzz_get_params(body);
+    return 0;
+  }
   slamvdb::ServerLimits limits;
   limits.max_terms = 8;
   limits.max_text_bytes = 64;

@@ -22,6 +22,7 @@ PACKAGES=(
   libcli11-dev           # CLI
   nlohmann-json3-dev     # manifests, metadata, the server's JSON
   libcpp-httplib-dev libssl-dev  # `slamvdb serve`: HTTP server (Debian builds it with OpenSSL: optional TLS)
+  libfaiss-dev  # `slamvdb serve`: the ANN index of top-k queries (query/ann_index.cpp; k-means + centroid search)
   openssl                # the serve TLS test makes a self-signed certificate
   libyaml-cpp-dev        # transforms.yaml, ontology
   zlib1g-dev             # CLIP merge list (.gz)
@@ -38,6 +39,7 @@ PACKAGES=(
   libceres-dev libnanoflann-dev liblzf-dev  # localization: pose graph, ScanContext k-d tree, PCD binary_compressed
   libpqxx-dev libpq-dev postgresql-15 postgresql-15-postgis-3  # the fleet map (PostgreSQL + PostGIS); tests start their own servers
   clang libclang-rt-14-dev           # sanitizer build (ASan + UBSan) and libFuzzer harnesses (scripts/fuzz.sh)
+  libomp-dev             # OpenMP for the clang builds: faiss (query/ann_index.cpp) needs it
   chromium                           # the HTML viewer's test (headless, driven by playwright-core)
   liblz4-dev libzstd-dev libbz2-dev  # recordings: lz4, zstd and bz2 compressed chunks (MCAP, ROS 1 bags, rosbag2)
   python3-rosbag python3-sensor-msgs python3-geometry-msgs python3-nav-msgs python3-tf2-msgs

@@ -11,6 +11,7 @@
 #include <queue>
 
 #include "slamvdb/core/error.hpp"
+#include "slamvdb/query/ann_index.hpp"
 #include "slamvdb/query/class_confidence.hpp"
 
 namespace slamvdb {
@@ -77,10 +78,19 @@ std::vector<ScoredCell> similarity_search(const SemanticMap& map, std::span<cons
   const Eigen::VectorXf q = *unit_vector(query);  // no float overflow for huge components
   std::vector<ScoredCell> out;
   map.read_index([&](const GlobalIndex& index) {
-    // With a region, the cells in it (read from the submaps whose bounds meet it), else all.
+    // With a region, the cells in it (read from the submaps whose bounds meet it); through an ANN
+    // index, the cells it proposes; else all.
     std::vector<std::size_t> candidates;
+    const bool approximate = searches_approximately(options);
     if (options.region) candidates = cells_of_region(index, *options.region);
-    const std::size_t n = options.region ? candidates.size() : index.size();
+    if (approximate) {
+      if (options.ann->index_size() != index.size())
+        throw Error(fmt::format("the ANN index was built over {} cells but the map now has {}: build it again",
+                                options.ann->index_size(), index.size()));
+      candidates = options.ann->candidates(std::span<const float>(q.data(), dim), options.ann_probes, options.top_k);
+    }
+    const bool listed = options.region || approximate;
+    const std::size_t n = listed ? candidates.size() : index.size();
     struct Local {
       TopK best;
       std::vector<float> scratch;
@@ -89,7 +99,7 @@ std::vector<ScoredCell> similarity_search(const SemanticMap& map, std::span<cons
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, kGrain), [&](const auto& range) {
       Local& local = locals.local();
       for (std::size_t k = range.begin(); k != range.end(); ++k) {
-        const std::size_t i = options.region ? candidates[k] : k;
+        const std::size_t i = listed ? candidates[k] : k;
         const GlobalIndex::Parts v = index.parts(i, local.scratch.data());
         float dot, norm2;
         kernels::dot_and_squared_norm(v.embedding, q.data(), dim, &dot, &norm2);
@@ -105,6 +115,10 @@ std::vector<ScoredCell> similarity_search(const SemanticMap& map, std::span<cons
   std::sort(out.begin(), out.end(), better);
   if (options.top_k && out.size() > options.top_k) out.resize(options.top_k);
   return out;
+}
+
+bool searches_approximately(const SearchOptions& options) {
+  return options.ann && options.top_k > 0 && !options.region && options.threshold == -std::numeric_limits<float>::infinity();
 }
 
 void classify_results(const SemanticMap& map, const QuerySet& queries, std::span<ScoredCell> results,

@@ -16,6 +16,8 @@
 
 namespace slamvdb {
 
+class AnnIndex;  // query/ann_index.hpp
+
 // One cell of the index with its cosine similarity to a query, and what the map knows of it.
 struct ScoredCell {
   IndexCellKey cell;
@@ -34,7 +36,16 @@ struct SearchOptions {
   // the cells of the others are tested exactly, and only those inside are scored
   // (GlobalIndex::cells_in_box). The answer is the unrestricted one's cells in the region.
   std::optional<QueryRegion> region;
+  // An approximate nearest-neighbour index of this map (query/ann_index.hpp): a top_k question
+  // without threshold or region scores only the cells it proposes (exactly, as below), so the
+  // answer is exact scores of a subset that may miss a cell (searches_approximately). Questions
+  // with a threshold or a region always scan every cell they concern. Null: exact.
+  const AnnIndex* ann = nullptr;
+  std::size_t ann_probes = 0;  // lists the index looks at (0: its default)
 };
+
+// Whether similarity_search answers `options` through options.ann.
+bool searches_approximately(const SearchOptions& options);
 
 // Cells by decreasing similarity with `query` (any norm; dim = the map's), ties by cell key. Cells
 // whose embedding is zero or not finite have no similarity and are left out. Parallel (TBB).

@@ -4,7 +4,11 @@
 #include <openssl/crypto.h>
 #include <spdlog/spdlog.h>
 
+#include <sys/socket.h>
+
 #include <algorithm>
+#include <cerrno>
+#include <cstring>
 #include <atomic>
 #include <chrono>
 #include <functional>
@@ -105,6 +109,7 @@ struct MapServer::Impl {
   std::unique_ptr<httplib::Server> http;
   ServerMetrics metrics;
   bool bound = false;
+  int listen_socket = -1;  // the socket httplib listens on (see add_routes)
   std::atomic<bool> stopping{false}, running{false};  // see MapServer::stop
 
   void add_routes();
@@ -225,6 +230,15 @@ void MapServer::Impl::add_routes() {
   // the pool, decides who waits (httplib's own pool is sized for the CPU and queues without bound).
   const std::size_t workers = std::min<std::size_t>(limit, 256) + 4;
   http->new_task_queue = [workers] { return new httplib::ThreadPool(workers); };
+  // Debian's httplib listens with a backlog of 5 (CPPHTTPLIB_LISTEN_BACKLOG, compiled into the
+  // library): when more clients connect at once, the kernel drops their SYN and they retry after
+  // a second (ServeLoad's p99 was that second: TcpExtListenOverflows counted the drops). The
+  // socket is remembered here (with httplib's own options) and bind() listens on it again with a
+  // larger backlog (Linux changes the backlog of a listening socket).
+  http->set_socket_options([this](socket_t sock) {
+    httplib::default_socket_options(sock);
+    listen_socket = sock;
+  });
 }
 
 MapServer::MapServer(std::shared_ptr<const MapService> map, std::unique_ptr<TextEmbeddingCache> text,
@@ -267,6 +281,9 @@ int MapServer::bind() {
   } else if (!impl_->http->bind_to_port(o.bind, o.port)) {
     throw Error(fmt::format("cannot bind {}:{} (in use, or not an address of this machine)", o.bind, o.port));
   }
+  constexpr int kListenBacklog = 1024;  // bounded still (and by net.core.somaxconn)
+  if (impl_->listen_socket >= 0 && ::listen(impl_->listen_socket, kListenBacklog) != 0)
+    spdlog::warn("cannot raise the listen backlog ({}): clients beyond 5 connecting at once wait 1 s", std::strerror(errno));
   impl_->bound = true;
   return port;
 }

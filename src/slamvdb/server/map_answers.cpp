@@ -74,8 +74,12 @@ nlohmann::json answer_query(const AnswerContext& context, const QueryRequest& re
   } catch (const Error& e) {
     throw RequestError(400, map_answers_detail::field_of_terms(request.terms), e.what());
   }
-  std::vector<ScoredCell> results =
-      context.map->search(std::span<const float>(q.data(), static_cast<std::size_t>(q.size())), request.search);
+  // `not` terms move the question away from the cells the index groups: they are scored exactly.
+  const bool exact = request.exact || !request.terms.not_text.empty() || !request.terms.not_classes.empty() ||
+                     !request.terms.not_vectors.empty();
+  MapService::SearchAnswer found =
+      context.map->search(std::span<const float>(q.data(), static_cast<std::size_t>(q.size())), request.search, exact);
+  std::vector<ScoredCell>& results = found.cells;
   if (context.queries) context.map->classify(*context.queries, results, context.classify, context.model_check);
   nlohmann::json rows = nlohmann::json::array();
   for (std::size_t i = 0; i < results.size(); ++i) {
@@ -100,7 +104,7 @@ nlohmann::json answer_query(const AnswerContext& context, const QueryRequest& re
           {"semantic_cells", context.map->semantic_cells()},
           {"top_k", request.top_k_capped ? 0 : request.search.top_k},
           {"threshold", std::isfinite(request.search.threshold) ? nlohmann::json(request.search.threshold) : nlohmann::json()},
-          {"exact", true},  // every answer is scored exactly today (an ANN index comes with issue 21's speed part)
+          {"exact", !found.approximate},  // false: the cells an ANN index proposed, scored exactly
           {"truncated", request.top_k_capped && results.size() >= request.search.top_k},
           {"region", map_answers_detail::region_json(request.search.region)},
           {"count", results.size()},

@@ -1,19 +1,26 @@
 #include "slamvdb/server/map_service.hpp"
 
+#include <spdlog/spdlog.h>
+
 #include "slamvdb/io/map_info_json.hpp"
 #include "slamvdb/store/map_store.hpp"
 
 namespace slamvdb {
 
-SemanticMapService::SemanticMapService(std::shared_ptr<const SemanticMap> map, nlohmann::json info)
-    : map_(std::move(map)), info_(std::move(info)) {}
+SemanticMapService::SemanticMapService(std::shared_ptr<const SemanticMap> map, nlohmann::json info,
+                                       std::unique_ptr<AnnIndex> ann)
+    : map_(std::move(map)), info_(std::move(info)), ann_(std::move(ann)) {}
 
 QuerySpace SemanticMapService::space() const { return {map_->params().semantic.dim, map_->info().model_id}; }
 
 std::size_t SemanticMapService::semantic_cells() const { return map_->num_index_cells(); }
 
-std::vector<ScoredCell> SemanticMapService::search(std::span<const float> query, const SearchOptions& options) const {
-  return similarity_search(*map_, query, options);
+MapService::SearchAnswer SemanticMapService::search(std::span<const float> query, const SearchOptions& options,
+                                                    bool exact) const {
+  SearchOptions o = options;
+  o.ann = exact ? nullptr : ann_.get();
+  const bool approximate = searches_approximately(o);
+  return {similarity_search(*map_, query, o), approximate};
 }
 
 void SemanticMapService::classify(const QuerySet& queries, std::span<ScoredCell> results,
@@ -47,11 +54,19 @@ MapService::RegionGrid SemanticMapService::nav_grid(const QuerySet& queries, con
 
 double SemanticMapService::grid_resolution() const { return map_->params().index_cell(); }
 
-std::shared_ptr<SemanticMapService> open_map_file_service(const std::filesystem::path& path) {
+std::shared_ptr<SemanticMapService> open_map_file_service(const std::filesystem::path& path, const AnnOptions* ann,
+                                                          std::size_t ann_min_cells) {
   const MapFileSummary summary = read_map_summary(path);
   auto map = std::make_shared<const SemanticMap>(load_map(path));
   nlohmann::json info = map_info_json(path.string(), summary, map_world_figures(*map));
-  return std::make_shared<SemanticMapService>(std::move(map), std::move(info));
+  std::unique_ptr<AnnIndex> index;
+  if (ann && map->num_index_cells() > 0 && map->num_index_cells() >= ann_min_cells) {
+    index = std::make_unique<AnnIndex>(*map, *ann);
+    const AnnIndexStats s = index->stats();
+    spdlog::info("ANN index: {} cells in {} lists ({} looked at per query), {:.1f} MB, built in {:.2f} s", s.cells,
+                 s.lists, s.probes, static_cast<double>(s.memory_bytes) / 1e6, s.build_seconds);
+  }
+  return std::make_shared<SemanticMapService>(std::move(map), std::move(info), std::move(index));
 }
 
 }  // namespace slamvdb

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "slamvdb/map/semantic_map.hpp"
+#include "slamvdb/query/ann_index.hpp"
 #include "slamvdb/query/map_query.hpp"
 #include "slamvdb/query/nav_grid.hpp"
 #include "slamvdb/query/query_terms.hpp"
@@ -25,8 +26,14 @@ class MapService {
   virtual std::size_t semantic_cells() const = 0;
   // What `slamvdb info --json --check` says about the map (GET /api/info).
   virtual nlohmann::json info() const = 0;
-  // similarity_search over the map (query/map_query.hpp), the CLI's function.
-  virtual std::vector<ScoredCell> search(std::span<const float> query, const SearchOptions& options) const = 0;
+  // similarity_search over the map (query/map_query.hpp), the CLI's function: through the
+  // service's ANN index when it has one, the question allows it (top_k without threshold or
+  // region) and `exact` is false; else every cell is scored. `approximate` says which.
+  struct SearchAnswer {
+    std::vector<ScoredCell> cells;
+    bool approximate = false;
+  };
+  virtual SearchAnswer search(std::span<const float> query, const SearchOptions& options, bool exact) const = 0;
   // query_points over the map (what `query --at` answers), with classes when `queries` is given.
   virtual std::vector<PointQuery> at(std::span<const Vec3d> points_world, const QuerySet* queries,
                                      const ClassifyOptions& options, ModelIdCheck model_check) const = 0;
@@ -54,11 +61,13 @@ class MapService {
 // readers safe, also while a mapper writes to it).
 class SemanticMapService final : public MapService {
  public:
-  SemanticMapService(std::shared_ptr<const SemanticMap> map, nlohmann::json info);
+  // `ann`: the map's ANN index (null: every search is exact).
+  SemanticMapService(std::shared_ptr<const SemanticMap> map, nlohmann::json info, std::unique_ptr<AnnIndex> ann = nullptr);
   QuerySpace space() const override;
   std::size_t semantic_cells() const override;
   nlohmann::json info() const override { return info_; }
-  std::vector<ScoredCell> search(std::span<const float> query, const SearchOptions& options) const override;
+  SearchAnswer search(std::span<const float> query, const SearchOptions& options, bool exact) const override;
+  const AnnIndex* ann() const { return ann_.get(); }
   void classify(const QuerySet& queries, std::span<ScoredCell> results, const ClassifyOptions& options,
                 ModelIdCheck model_check) const override;
   std::vector<PointQuery> at(std::span<const Vec3d> points_world, const QuerySet* queries,
@@ -73,9 +82,13 @@ class SemanticMapService final : public MapService {
  private:
   std::shared_ptr<const SemanticMap> map_;
   nlohmann::json info_;
+  std::unique_ptr<const AnnIndex> ann_;
 };
 
 // A saved map, loaded once and checked in full; its info is `info --json --check` of the file.
-std::shared_ptr<SemanticMapService> open_map_file_service(const std::filesystem::path& path);
+// With `ann`, an ANN index is built over it with those options (its figures are logged) when it
+// has at least `ann_min_cells` semantic cells.
+std::shared_ptr<SemanticMapService> open_map_file_service(const std::filesystem::path& path,
+                                                          const AnnOptions* ann = nullptr, std::size_t ann_min_cells = 0);
 
 }  // namespace slamvdb

@@ -2,7 +2,8 @@
 // each, mixing the routes (query by class, at, classes, nav-grid), more clients than
 // --max-concurrent. Every answer is a 200 or the documented 503 (with Retry-After), never another
 // status or a dropped connection; the server answers /healthz afterwards and stops cleanly.
-// Latency p50/p99 is printed (bench/bench_serve.cpp measures it on a million cells).
+// Latency p50/p99 is printed (bench/bench_serve.cpp measures it on a million cells); p99 stays
+// under the 1 s a client waits when the listen backlog overflows.
 #include <fmt/format.h>
 #include <gtest/gtest.h>
 
@@ -58,6 +59,9 @@ TEST(ServeLoad, ManyClientsGetAnswersOr503AndNothingElse) {
              latencies_ms.size(), kClients, statuses[200], statuses[503], latencies_ms[latencies_ms.size() / 2],
              latencies_ms[latencies_ms.size() * 99 / 100]);
   for (const auto& [status, n] : statuses) EXPECT_TRUE(status == 200 || status == 503) << n << " answers with " << status;
+  // No client waited for a SYN retransmission (1 s): the listen backlog holds 16 clients
+  // connecting at once (httplib's own is 5; MapServer::bind raises it).
+  EXPECT_LT(latencies_ms[latencies_ms.size() * 99 / 100], 1000.0);
   EXPECT_GT(statuses[200], 0);
   EXPECT_EQ(refused_without_retry_after, 0);
   httplib::Client client("127.0.0.1", server.port());
