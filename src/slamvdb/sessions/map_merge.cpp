@@ -26,6 +26,12 @@ std::string merge_incompatibility(const MapParams& first_params, const MapInfo& 
   return out;
 }
 
+MapContents& MapContents::operator+=(const MapContents& o) {
+  sessions += o.sessions, submaps += o.submaps, occupied_voxels += o.occupied_voxels;
+  semantic_voxels += o.semantic_voxels, observations += o.observations;
+  return *this;
+}
+
 MapContents map_contents(const SemanticMap& map) {
   MapContents c;
   c.sessions = map.info().sessions.empty() ? 1 : map.info().sessions.size();
@@ -80,6 +86,12 @@ SemanticMap merge_session_maps(std::vector<SemanticMap>& inputs, const std::vect
       merged.add_finished_submap(moved, std::move(voxels));
     }
   report.merged = map_contents(merged);
+  // Nothing may be lost on the way: the merged map holds what the inputs held, count for count.
+  MapContents sum;
+  for (const MapContents& c : report.inputs) sum += c;
+  if (!(report.merged == sum))
+    throw Error(fmt::format("merging lost content ({} submaps, {} observations in; {} and {} out)", sum.submaps,
+                            sum.observations, report.merged.submaps, report.merged.observations));
   return merged;
 }
 

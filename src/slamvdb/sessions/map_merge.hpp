@@ -25,6 +25,8 @@ struct MapContents {
   std::size_t sessions = 0, submaps = 0;
   std::size_t occupied_voxels = 0, semantic_voxels = 0;
   uint64_t observations = 0;  // the semantic voxels' view counts, summed
+  MapContents& operator+=(const MapContents& o);
+  bool operator==(const MapContents&) const = default;
 };
 MapContents map_contents(const SemanticMap& map);
 
@@ -36,7 +38,8 @@ struct MapMergeReport {
 // Moves every submap of `inputs` (left empty) into one map with the first input's parameters and
 // info, its sessions those of all inputs (an input that lists none contributes one session named
 // labels[i]). Throws Error naming labels[i] and the difference for an input that cannot be merged
-// (merge_incompatibility), or for fewer than two inputs. Deterministic.
+// (merge_incompatibility), for fewer than two inputs, or when the merged map does not hold the
+// inputs' contents count for count (report.merged == sum of report.inputs). Deterministic.
 SemanticMap merge_session_maps(std::vector<SemanticMap>& inputs, const std::vector<std::string>& labels,
                                MapMergeReport& report);
 
