@@ -18,6 +18,7 @@
 #include "slamvdb/synth/sequence_writer.hpp"
 #include "slamvdb/testing/map_cells.hpp"
 #include "slamvdb/testing/run_command.hpp"
+#include "slamvdb/testing/test_scale.hpp"
 
 namespace slamvdb {
 namespace {
@@ -43,7 +44,9 @@ class Checkpoints : public ::testing::Test {
     config.image_height = 100;
     // A quarter of the OS1's columns: what is checked here (which submaps reach the file, what a
     // kill leaves, what resume adds) does not depend on the scans' density, and every test below
-    // maps the 240 scans several times.
+    // maps the 240 scans several times. The sanitizer run drives the same loop twice as fast
+    // (120 scans): the same 10 m submaps, the same loop back to the start (slamvdb/testing/test_scale.hpp).
+    config.speed_mps = testing::test_size(5.0, 10.0);
     config.lidar.columns = 256;
     synth::write_synthetic_sequence(config, sequence(), true);
   }

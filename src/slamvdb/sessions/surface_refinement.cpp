@@ -16,6 +16,19 @@ using localization::LocalVoxel;
 using localization::pack_voxel;
 using localization::voxel_of;
 
+namespace {
+
+// The squared distance from coordinate p (in cell k) to the nearest face of cell k + d along one
+// axis, less a margin (a millionth of a cell) for floor()'s rounding of points on a cell's face:
+// no point of that cell is nearer along this axis. 0 for the point's own cell.
+double surface_cell_gap(double p, int k, int d, double cell) {
+  if (d == 0) return 0.0;
+  const double gap = (d > 0 ? (k + d) * cell - p : p - (k + d + 1) * cell) - 1e-6 * cell;
+  return gap > 0.0 ? gap * gap : 0.0;
+}
+
+}  // namespace
+
 template <typename F>
 void SurfacePlanes::for_each_near(const Vec3d& p, int reach, F&& f) const {
   const LocalVoxel k = voxel_of(p, cell_);
@@ -43,13 +56,30 @@ SurfacePlanes::SurfacePlanes(const std::vector<Vec3d>& base_points, const std::v
     Vec3d sum = Vec3d::Zero();
     Eigen::Matrix3d outer = Eigen::Matrix3d::Zero();
     std::size_t n = 0;
-    for_each_near(points_[i], reach, [&](std::size_t j) {
-      const Vec3d d = points_[j] - points_[i];  // about the point, for precision far from the origin
-      if (d.squaredNorm() > r2) return;
-      sum += d;
-      outer += d * d.transpose();
-      ++n;
-    });
+    // The cells of the (2 reach + 1)^3 block in for_each_near's order, without those whose box lies
+    // beyond the radius (most of the block's corners): their points would all be rejected below,
+    // so the sums, and their order, are the same as over the whole block.
+    const Vec3d& p = points_[i];
+    const LocalVoxel k = voxel_of(p, cell_);
+    for (int dx = -reach; dx <= reach; ++dx) {
+      const double gx = surface_cell_gap(p.x(), k.x(), dx, cell_);
+      for (int dy = -reach; dy <= reach; ++dy) {
+        const double gxy = gx + surface_cell_gap(p.y(), k.y(), dy, cell_);
+        if (gxy > r2) continue;
+        for (int dz = -reach; dz <= reach; ++dz) {
+          if (gxy + surface_cell_gap(p.z(), k.z(), dz, cell_) > r2) continue;
+          const auto it = cells_.find(pack_voxel(k + LocalVoxel(dx, dy, dz)));
+          if (it == cells_.end()) continue;
+          for (const std::size_t j : it->second) {
+            const Vec3d d = points_[j] - p;  // about the point, for precision far from the origin
+            if (d.squaredNorm() > r2) continue;
+            sum += d;
+            outer += d * d.transpose();
+            ++n;
+          }
+        }
+      }
+    }
     if (n < config.min_neighbours) continue;
     const Vec3d mean = sum / static_cast<double>(n);
     const Eigen::Matrix3d covariance = outer / static_cast<double>(n) - mean * mean.transpose();

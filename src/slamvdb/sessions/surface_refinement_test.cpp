@@ -3,7 +3,9 @@
 // lattices together, 0.10 m off in z).
 #include <gtest/gtest.h>
 
+#include <Eigen/Eigenvalues>
 #include <cmath>
+#include <random>
 #include <set>
 #include <tuple>
 #include <vector>
@@ -49,6 +51,48 @@ TEST(SurfaceRefinement, PutsOffsetLatticesOnTheSurface) {
   EXPECT_LT(Eigen::AngleAxisd(refined.T_base_other.linear()).angle() * 180.0 / M_PI, 0.1);
   std::printf("SIMULATED lattices 0.10 m apart: z error 0.100 m -> %.4f m (%zu correspondences, %d iterations)\n",
               error.z(), refined.correspondences, refined.iterations);
+}
+
+// Each plane is fitted to every base point within the normal radius, whichever cell it lies in
+// (the constructor leaves out the cells beyond the radius): the same centroids and normals as a
+// search over all the points, on SIMULATED points off any lattice, far from the origin, many of
+// them just inside or outside the radius of another.
+TEST(SurfaceRefinement, PlanesUseEveryBasePointWithinTheRadius) {
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<double> jitter(-0.04, 0.04);
+  const Vec3d origin(1000.3, -2000.7, 30.1);
+  std::vector<Vec3d> base;
+  for (double x = 0.0; x < 5.0; x += 0.1)
+    for (double y = 0.0; y < 5.0; y += 0.1)
+      base.push_back(origin + Vec3d(x + jitter(rng), y + jitter(rng), 0.3 * std::sin(x) + 0.1 * y + jitter(rng)));
+  SurfaceRefinementConfig config;
+  config.normal_radius = 0.45;
+  const SurfacePlanes planes(base, base, config);
+  const double r2 = config.normal_radius * config.normal_radius;
+  std::size_t compared = 0;
+  for (const Vec3d& p : base) {
+    Vec3d sum = Vec3d::Zero();
+    Eigen::Matrix3d outer = Eigen::Matrix3d::Zero();
+    std::size_t n = 0;
+    for (const Vec3d& q : base) {
+      const Vec3d d = q - p;
+      if (d.squaredNorm() > r2) continue;
+      sum += d, outer += d * d.transpose(), ++n;
+    }
+    ASSERT_GE(n, config.min_neighbours);
+    const Vec3d mean = sum / static_cast<double>(n);
+    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver(outer / static_cast<double>(n) - mean * mean.transpose());
+    // Near the patch's edges a neighbourhood may be too narrow for a plane: the same rule decides.
+    const bool flat = solver.eigenvalues()(1) >= 0.25 * solver.eigenvalues()(2);
+    Vec3d centroid, normal;
+    ASSERT_EQ(planes.nearest(p, centroid, normal), flat);  // the point's own plane
+    if (!flat) continue;
+    EXPECT_LT((centroid - (p + mean)).norm(), 1e-9) << "at " << (p - origin).transpose() << " with " << n << " points";
+    EXPECT_GT(std::abs(normal.dot(solver.eigenvectors().col(0))), 1.0 - 1e-9);
+    ++compared;
+  }
+  EXPECT_EQ(planes.planes(), compared);
+  EXPECT_GT(compared, base.size() * 9 / 10);
 }
 
 }  // namespace
