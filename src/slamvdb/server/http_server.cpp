@@ -17,6 +17,7 @@
 
 #include "slamvdb/server/httplib_include.hpp"
 #include "slamvdb/server/nav_grid_answer.hpp"
+#include "slamvdb/server/points_answer.hpp"
 #include "slamvdb/server/server_metrics.hpp"
 
 namespace slamvdb {
@@ -177,6 +178,14 @@ void MapServer::Impl::add_routes() {
          NavGridAnswer answer = answer_nav_grid(context, request, options.limits.max_cells);
          res.status = 200;
          res.set_content(std::move(answer.body), answer.content_type);
+       }},
+      {"/api/points", "GET", limit,
+       [this](const httplib::Request& req, httplib::Response& res) {
+         const GetParams params(req, "GET /api/points", {"bbox", "near", "radius", "lod", "limit", "query"});
+         const PointsQuery request = decode_points_request(
+             {params.region(), params.get("lod"), params.get("limit"), params.get("query")}, options.limits);
+         res.status = 200;
+         res.set_content(answer_points(context, request), "application/octet-stream");
        }},
       {"/api/query", "POST", limit,
        [this](const httplib::Request& req, httplib::Response& res) {
