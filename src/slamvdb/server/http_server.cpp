@@ -19,6 +19,7 @@
 #include "slamvdb/server/nav_grid_answer.hpp"
 #include "slamvdb/server/points_answer.hpp"
 #include "slamvdb/server/server_metrics.hpp"
+#include "slamvdb/server/web_assets.hpp"
 
 namespace slamvdb {
 
@@ -178,6 +179,17 @@ void MapServer::Impl::add_routes() {
          NavGridAnswer answer = answer_nav_grid(context, request, options.limits.max_cells);
          res.status = 200;
          res.set_content(std::move(answer.body), answer.content_type);
+       }},
+      // The page and its script, from the bundle compiled in (web_assets.hpp): no path reaches a file.
+      {"/", "GET", limit,
+       [](const httplib::Request& req, httplib::Response& res) {
+         const WebAsset asset = web_asset(req.path);
+         res.set_content(std::string(asset.body), std::string(asset.content_type));
+       }},
+      {"/assets/serve.js", "GET", limit,
+       [](const httplib::Request& req, httplib::Response& res) {
+         const WebAsset asset = web_asset(req.path);
+         res.set_content(std::string(asset.body), std::string(asset.content_type));
        }},
       {"/api/points", "GET", limit,
        [this](const httplib::Request& req, httplib::Response& res) {
