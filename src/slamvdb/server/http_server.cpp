@@ -20,6 +20,7 @@
 #include "slamvdb/server/points_answer.hpp"
 #include "slamvdb/server/server_metrics.hpp"
 #include "slamvdb/server/web_assets.hpp"
+#include "slamvdb/server/web_events.hpp"
 
 namespace slamvdb {
 
@@ -113,6 +114,7 @@ struct MapServer::Impl {
   bool bound = false;
   int listen_socket = -1;  // the socket httplib listens on (see add_routes)
   std::atomic<bool> stopping{false}, running{false};  // see MapServer::stop
+  std::unique_ptr<MapEventStreams> events;  // GET /api/events (web_events.hpp)
 
   void add_routes();
   std::string metrics_text() const;
@@ -139,6 +141,7 @@ void MapServer::Impl::add_routes() {
   using namespace http_server_detail;
   constexpr std::size_t kAlways = std::numeric_limits<std::size_t>::max();  // monitoring: never refused
   const std::size_t limit = options.limits.max_concurrent;
+  events = std::make_unique<MapEventStreams>(*map, stopping);
   // Every route with its one method; the other methods on a known path answer 405 (httplib alone
   // would say 404, which tells a client the path is wrong when the method is).
   struct Route {
@@ -190,6 +193,11 @@ void MapServer::Impl::add_routes() {
        [](const httplib::Request& req, httplib::Response& res) {
          const WebAsset asset = web_asset(req.path);
          res.set_content(std::string(asset.body), std::string(asset.content_type));
+       }},
+      {"/api/events", "GET", limit,
+       [this](const httplib::Request& req, httplib::Response& res) {
+         const GetParams params(req, "GET /api/events", {});
+         events->open(res);
        }},
       {"/api/points", "GET", limit,
        [this](const httplib::Request& req, httplib::Response& res) {

@@ -59,6 +59,9 @@ class MapService {
   // GET /api/points: the occupied voxels as chunks per (submap, octree node), a class or score each
   // (collect_point_chunks, server/points_chunks.hpp).
   virtual PointChunks points(const PointsRequest& request, const PointValueSource& values) const = 0;
+  // A counter that grows whenever the map changes (a submap finished, moved or merged): GET
+  // /api/events tells viewers. A saved map never changes: 0.
+  virtual std::uint64_t changes() const { return 0; }
 };
 
 // A SemanticMap in memory, read through its global index (SemanticMap's own locks make concurrent

@@ -1,11 +1,15 @@
 // The page `slamvdb serve` answers at /: only the embedded page and script are served (no path of a
 // request reaches a file), and in Debian's headless chromium the page draws the map, hides a class
-// layer, and highlights the answer to a typed question where `slamvdb query` puts it.
+// layer, and highlights the answer to a typed question where `slamvdb query` puts it. GET
+// /api/events streams the map's change counter, to a bounded number of clients.
 #include <fmt/format.h>
 #include <gtest/gtest.h>
 
+#include <atomic>
+#include <chrono>
 #include <filesystem>
 #include <iostream>
+#include <thread>
 #include <nlohmann/json.hpp>
 
 #include "slamvdb/server/web_assets.hpp"
@@ -109,6 +113,61 @@ TEST(ServeWeb, PageHighlightsTheClisAnswerInChromium) {
   EXPECT_NE(picked.find("observations: "), std::string::npos) << picked;
   EXPECT_NE(picked.find("score: "), std::string::npos) << picked;
   EXPECT_GT(fs::file_size(shot), 1000u);
+}
+
+// Reads GET /api/events until the first event is complete; returns what was received.
+std::string first_event(int port) {
+  httplib::Client client("127.0.0.1", port);
+  std::string received;
+  client.Get("/api/events", [&](const char* data, std::size_t n) {
+    received.append(data, n);
+    return received.find("\n\n") == std::string::npos;  // stop after one event
+  });
+  return received;
+}
+
+TEST(ServeWeb, EventsStreamTheChangeCounterToBoundedClients) {
+  testing::ServedMap s;
+  ASSERT_GT(s.server.port(), 0) << s.server.output() << "\n" << s.log();
+  const std::string event = first_event(s.server.port());
+  EXPECT_EQ(event.rfind("retry: 2000\nid: 0\nevent: map\ndata: ", 0), 0u) << event;
+  const auto data = nlohmann::json::parse(event.substr(event.find("data: ") + 6));
+  EXPECT_EQ(data.at("changes"), 0);  // a saved map never changes
+  EXPECT_EQ(data.at("semantic_cells").get<std::size_t>(), s.f.semantic_cells);
+  EXPECT_EQ(data.at("submaps"), 1);
+  // Four streams open (each holds a worker): a fifth is refused with 503 at once, not queued.
+  constexpr int kStreams = 4;
+  std::vector<std::unique_ptr<httplib::Client>> clients;
+  std::vector<std::thread> readers;
+  std::atomic<int> started{0};
+  for (int i = 0; i < kStreams; ++i) {
+    clients.push_back(std::make_unique<httplib::Client>("127.0.0.1", s.server.port()));
+    readers.emplace_back([&, c = clients.back().get()] {
+      c->Get("/api/events", [&](const char*, std::size_t) {
+        ++started;
+        return true;
+      });
+    });
+  }
+  for (int wait = 0; wait < 200 && started < kStreams; ++wait) std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  ASSERT_GE(started.load(), kStreams);
+  const auto refused = s.client.Get("/api/events");
+  ASSERT_TRUE(refused);
+  EXPECT_EQ(refused->status, 503) << refused->body;
+  EXPECT_EQ(refused->get_header_value("Content-Type"), "application/json");
+  EXPECT_FALSE(refused->get_header_value("Retry-After").empty());
+  for (auto& c : clients) c->stop();
+  for (auto& t : readers) t.join();
+  // The streams are released when their clients leave (noticed at a heartbeat): a new one is served.
+  std::string again;
+  for (int wait = 0; wait < 150 && again.find("event: map") == std::string::npos; ++wait) {
+    again = first_event(s.server.port());
+    if (again.find("event: map") == std::string::npos) std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  }
+  EXPECT_NE(again.find("event: map"), std::string::npos) << again;
+  const auto other = s.client.Get("/api/events?since=3");
+  ASSERT_TRUE(other);
+  EXPECT_EQ(other->status, 400);  // no parameters
 }
 
 }  // namespace
