@@ -113,8 +113,9 @@ async function main() {
       geometry.setAttribute('position', new THREE.BufferAttribute(q, 3));
       geometry.setAttribute('color', new THREE.BufferAttribute(new Uint8Array(3 * indices.length), 3, true));
       const points = new THREE.Points(geometry, material);
-      points.matrixAutoUpdate = false;
-      points.matrix.copy(matrix);
+      // As position, rotation and scale (a rigid pose times a uniform scale decomposes exactly), so
+      // that the raycaster's point threshold is scaled into the chunk's units.
+      matrix.decompose(points.position, points.quaternion, points.scale);
       points.updateMatrixWorld(true);
       geometry.computeBoundingBox();
       bounds.union(geometry.boundingBox.clone().applyMatrix4(matrix));
@@ -122,13 +123,20 @@ async function main() {
       layers.push({ points, chunk: c, value, indices });
     }
   });
+  // Colours are given in sRGB; three.js renders in linear space and encodes sRGB on output, so
+  // the attributes hold linear values (else every colour would come out lighter than its legend).
+  const linear = (rgb) => {
+    const c = new THREE.Color().setRGB(rgb[0] / 255, rgb[1] / 255, rgb[2] / 255, THREE.SRGBColorSpace);
+    return [c.r, c.g, c.b];
+  };
+  const heatTable = Array.from({ length: 256 }, (_, v) => linear(v === NONE ? [60, 60, 60] : heat(v / 254)));
+  const classTable = Array.from({ length: 256 }, (_, v) => linear(classRgb(v)));
   const paint = (scores) => {  // scores: a score answer's chunks (heat map), or null (classes)
     for (const layer of layers) {
       const colour = layer.points.geometry.getAttribute('color');
       layer.indices.forEach((i, k) => {
-        const v = scores ? scores[layer.chunk].values[i] : layer.value;
-        const rgb = scores ? (v === NONE ? [60, 60, 60] : heat(v / 254)) : classRgb(v);
-        colour.setXYZ(k, rgb[0] / 255, rgb[1] / 255, rgb[2] / 255);
+        const rgb = scores ? heatTable[scores[layer.chunk].values[i]] : classTable[layer.value];
+        colour.setXYZ(k, rgb[0], rgb[1], rgb[2]);
       });
       colour.needsUpdate = true;
     }

@@ -69,7 +69,11 @@ try {
     result.answer_centroid = [0, 1].map((k) => projected.reduce((s, p) => s + p[k], 0) / projected.length);
     result.colour_bar = await page.evaluate(() => document.querySelector('.colour-bar-labels').textContent);
     await page.screenshot({ path: shotPath });
-    await page.mouse.click(projected[0][0], projected[0][1]);
+    // A click on the first answer point that the panel does not cover.
+    const target = await page.evaluate((points) => points.find(([x, y]) => document.elementFromPoint(x, y) === window.slamvdbServe.canvas), projected);
+    result.clicked = target || null;
+    if (!target) throw new Error('every answer point is under the panel or off the view');
+    await page.mouse.click(target[0], target[1]);
     await page.waitForFunction(() => document.getElementById('slamvdb-picked').textContent !== '', null, { timeout: 30000 });
     result.picked = await page.evaluate(() => document.getElementById('slamvdb-picked').textContent);
   }
