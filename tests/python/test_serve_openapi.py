@@ -156,6 +156,11 @@ def call(base, method, path, body=None):
     ("GET", "/api/classes?bbox=-1,-1,-1,1,1,1", None, 400),  # this server has no --queries
     ("GET", "/api/classes", None, 400),
     ("POST", "/api/classes", {}, 405),
+    ("GET", "/api/points?lod=9", None, 400),
+    ("GET", "/api/points?limit=1", None, 413),
+    ("POST", "/api/points", {}, 405),
+    ("GET", "/api/events?since=1", None, 400),
+    ("POST", "/", {}, 405),
 ])
 def test_answers_follow_the_openapi_file(server, method, path, body, status):
     got, answer = call(server, method, path, body)

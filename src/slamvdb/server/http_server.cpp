@@ -17,7 +17,10 @@
 
 #include "slamvdb/server/httplib_include.hpp"
 #include "slamvdb/server/nav_grid_answer.hpp"
+#include "slamvdb/server/points_answer.hpp"
 #include "slamvdb/server/server_metrics.hpp"
+#include "slamvdb/server/web_assets.hpp"
+#include "slamvdb/server/web_events.hpp"
 
 namespace slamvdb {
 
@@ -111,6 +114,7 @@ struct MapServer::Impl {
   bool bound = false;
   int listen_socket = -1;  // the socket httplib listens on (see add_routes)
   std::atomic<bool> stopping{false}, running{false};  // see MapServer::stop
+  std::unique_ptr<MapEventStreams> events;  // GET /api/events (web_events.hpp)
 
   void add_routes();
   std::string metrics_text() const;
@@ -137,6 +141,7 @@ void MapServer::Impl::add_routes() {
   using namespace http_server_detail;
   constexpr std::size_t kAlways = std::numeric_limits<std::size_t>::max();  // monitoring: never refused
   const std::size_t limit = options.limits.max_concurrent;
+  events = std::make_unique<MapEventStreams>(*map, stopping);
   // Every route with its one method; the other methods on a known path answer 405 (httplib alone
   // would say 404, which tells a client the path is wrong when the method is).
   struct Route {
@@ -177,6 +182,30 @@ void MapServer::Impl::add_routes() {
          NavGridAnswer answer = answer_nav_grid(context, request, options.limits.max_cells);
          res.status = 200;
          res.set_content(std::move(answer.body), answer.content_type);
+       }},
+      // The page and its script, from the bundle compiled in (web_assets.hpp): no path reaches a file.
+      {"/", "GET", limit,
+       [](const httplib::Request& req, httplib::Response& res) {
+         const WebAsset asset = web_asset(req.path);
+         res.set_content(std::string(asset.body), std::string(asset.content_type));
+       }},
+      {"/assets/serve.js", "GET", limit,
+       [](const httplib::Request& req, httplib::Response& res) {
+         const WebAsset asset = web_asset(req.path);
+         res.set_content(std::string(asset.body), std::string(asset.content_type));
+       }},
+      {"/api/events", "GET", limit,
+       [this](const httplib::Request& req, httplib::Response& res) {
+         const GetParams params(req, "GET /api/events", {});
+         events->open(res);
+       }},
+      {"/api/points", "GET", limit,
+       [this](const httplib::Request& req, httplib::Response& res) {
+         const GetParams params(req, "GET /api/points", {"bbox", "near", "radius", "lod", "limit", "query"});
+         const PointsQuery request = decode_points_request(
+             {params.region(), params.get("lod"), params.get("limit"), params.get("query")}, options.limits);
+         res.status = 200;
+         res.set_content(answer_points(context, request), "application/octet-stream");
        }},
       {"/api/query", "POST", limit,
        [this](const httplib::Request& req, httplib::Response& res) {

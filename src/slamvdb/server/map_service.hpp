@@ -14,6 +14,7 @@
 #include "slamvdb/query/map_query.hpp"
 #include "slamvdb/query/nav_grid.hpp"
 #include "slamvdb/query/query_terms.hpp"
+#include "slamvdb/server/points_chunks.hpp"
 
 namespace slamvdb {
 
@@ -55,6 +56,12 @@ class MapService {
                               ModelIdCheck model_check) const = 0;
   // Metres per cell of the map's navigation grid (its index cell).
   virtual double grid_resolution() const = 0;
+  // GET /api/points: the occupied voxels as chunks per (submap, octree node), a class or score each
+  // (collect_point_chunks, server/points_chunks.hpp).
+  virtual PointChunks points(const PointsRequest& request, const PointValueSource& values) const = 0;
+  // A counter that grows whenever the map changes (a submap finished, moved or merged): GET
+  // /api/events tells viewers. A saved map never changes: 0.
+  virtual std::uint64_t changes() const { return 0; }
 };
 
 // A SemanticMap in memory, read through its global index (SemanticMap's own locks make concurrent
@@ -78,6 +85,7 @@ class SemanticMapService final : public MapService {
   RegionGrid nav_grid(const QuerySet& queries, const NavGridOptions& options, const ClassifyOptions& classify,
                       ModelIdCheck model_check) const override;
   double grid_resolution() const override;
+  PointChunks points(const PointsRequest& request, const PointValueSource& values) const override;  // points_chunks.cpp
 
  private:
   std::shared_ptr<const SemanticMap> map_;

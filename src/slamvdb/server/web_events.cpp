@@ -1,0 +1,68 @@
+#include "slamvdb/server/web_events.hpp"
+
+#include <fmt/format.h>
+
+#include <chrono>
+#include <memory>
+#include <optional>
+#include <thread>
+
+#include "slamvdb/server/httplib_include.hpp"
+#include "slamvdb/server/request_decoding.hpp"
+
+namespace slamvdb {
+
+std::string map_event_text(const MapService& map, std::uint64_t changes) {
+  const nlohmann::json info = map.info();
+  const nlohmann::json data = {{"changes", changes},
+                               {"submaps", info.contains("submaps") ? info["submaps"].size() : 0},
+                               {"semantic_cells", map.semantic_cells()}};
+  return fmt::format("id: {}\nevent: map\ndata: {}\n\n", changes, data.dump());
+}
+
+MapEventStreams::MapEventStreams(const MapService& map, const std::atomic<bool>& stopping, EventStreamOptions options)
+    : map_(map), stopping_(stopping), options_(options) {}
+
+void MapEventStreams::open(httplib::Response& res) {
+  if (open_.fetch_add(1) >= options_.max_streams) {
+    open_.fetch_sub(1);
+    res.set_header("Retry-After", "5");
+    throw RequestError(503, "", fmt::format("{} event streams are open, the most this server keeps; try again later",
+                                            options_.max_streams));
+  }
+  struct Stream {
+    std::optional<std::uint64_t> sent;  // the counter last sent
+    std::chrono::steady_clock::time_point last_write = std::chrono::steady_clock::now();
+  };
+  auto stream = std::make_shared<Stream>();
+  res.set_header("Cache-Control", "no-cache");
+  // httplib calls the provider again while it returns true: each call writes what is due or
+  // waits one poll interval. A failed write (the client left) or a stopping server ends it.
+  res.set_chunked_content_provider(
+      "text/event-stream",
+      [this, stream](std::size_t, httplib::DataSink& sink) {
+        if (stopping_) {
+          sink.done();
+          return true;
+        }
+        const std::uint64_t changes = map_.changes();
+        const auto now = std::chrono::steady_clock::now();
+        std::string text;
+        if (!stream->sent) text = "retry: 2000\n";
+        if (!stream->sent || *stream->sent != changes) {
+          text += map_event_text(map_, changes);
+          stream->sent = changes;
+        } else if (std::chrono::duration<double>(now - stream->last_write).count() >= options_.heartbeat_seconds) {
+          text = ": heartbeat\n\n";
+        }
+        if (text.empty()) {
+          std::this_thread::sleep_for(std::chrono::duration<double>(options_.poll_seconds));
+          return true;
+        }
+        stream->last_write = now;
+        return sink.write(text.data(), text.size());
+      },
+      [this](bool) { open_.fetch_sub(1); });
+}
+
+}  // namespace slamvdb
