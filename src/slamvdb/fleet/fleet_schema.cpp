@@ -95,7 +95,12 @@ ALTER TABLE slamvdb.submaps
 // (fleet_shards.cpp). A submap's home tile (a 500 m square of the fleet frame, at the centre of its
 // footprint when first pushed) fixes its shard for good; each tile's extent grows with every
 // footprint pushed into it, so a region asks only the shards whose tiles' extents meet it.
+// Also: embeddings are stored without TOAST compression (STORAGE EXTERNAL, as occupancy's
+// log-odds): pglz gains nothing on fp16/fp32 embeddings (the benchmark's rows: 13.1 MB in, 13.1 MB
+// stored) and its failed attempt was a quarter of the server's COPY time (docs/fleet-design.md,
+// "Measurements"); keys, counts and statistics keep EXTENDED (they compress).
 constexpr const char* kVersion3 = R"sql(
+ALTER TABLE slamvdb.semantics ALTER COLUMN embeddings SET STORAGE EXTERNAL;
 ALTER TABLE slamvdb.submaps ADD COLUMN shard integer NOT NULL DEFAULT 0;
 ALTER TABLE slamvdb.occupancy ADD COLUMN shard integer NOT NULL DEFAULT 0;
 ALTER TABLE slamvdb.semantics ADD COLUMN shard integer NOT NULL DEFAULT 0;

@@ -53,6 +53,11 @@ TEST_F(FleetSchema, AnEmptyDatabaseGetsPostgisAndTheSchemaOnceAndIsLeftAloneAfte
                 "AND attname = 'log_odds'",
                 db),
             "e");
+  // Nor embeddings, where pglz gains nothing (version 3); the small key and count blobs compress.
+  EXPECT_EQ(sql("SELECT string_agg(attname || '=' || attstorage::text, ',' ORDER BY attname) FROM pg_attribute "
+                "WHERE attrelid = 'slamvdb.semantics'::regclass AND atttypid = 'bytea'::regtype",
+                db),
+            "counts=x,embeddings=e,keys=x,stats=x");
   // A second check (another process, later) changes nothing.
   sql("INSERT INTO slamvdb.sessions(name, t_fleet_session) VALUES ('monday', array_fill(0::float8, ARRAY[16]))", db);
   const SchemaCheck second = FleetDatabase(server_->url(db)).ensure_schema();
