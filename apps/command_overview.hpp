@@ -37,6 +37,7 @@ inline const std::vector<CommandOverviewLine>& command_overview() {
       {"Look", "export", "Write a map as .ply, .pcd, .png, .csv, .npy or .html"},
       {"Share", "push", "Push a map's submaps into a fleet map (PostgreSQL + PostGIS)"},
       {"Share", "pull", "Write a region of a fleet map as a map file"},
+      {"Share", "add-shard", "Add a PostgreSQL server to a fleet map (postgres_fdw)"},
       {"Evaluate", "eval", "Score a map against a labelled sequence (Table 6.1)"},
       {"Evaluate", "eval-images", "Score the per-image baseline against the 2D labels"},
       {"Evaluate", "eval-trajectory", "Score a trajectory against ground truth (ATE, RPE)"},

@@ -24,7 +24,7 @@ TEST(CliConventions, TopLevelHelpListsTheWorkflowOneLineEach) {
       "odometry",                // localize
       "query", "classify", "train-queries", "import-queries", "serve",  // ask
       "inspect", "info", "export",  // look
-      "push", "pull",               // share
+      "push", "pull", "add-shard",  // share
       "eval", "eval-images", "eval-trajectory",  // evaluate
       "tokenize", "embed-text", "segment"};      // tools
 #if !SLAMVDB_WITH_TRAINING  // the demo trains query vectors: builds without Torch have no demo

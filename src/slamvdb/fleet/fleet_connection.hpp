@@ -38,6 +38,24 @@ inline std::string text_array(const std::vector<std::string>& items) {
   return out + "}";
 }
 
+// The shards whose tiles' extents meet the region, as an int[] literal for `shard = ANY(...)`: on a
+// sharded fleet the planner then prunes every other shard's partition, so a region never opens a
+// connection to a server that holds none of it (a dead one included).
+inline std::string region_shards(pqxx::transaction_base& tx, const Eigen::AlignedBox3d& b) {
+  return tx
+      .exec_params("SELECT coalesce(array_agg(DISTINCT shard ORDER BY shard), '{}')::text FROM slamvdb.tiles "
+                   "WHERE x_min <= $3 AND x_max >= $1 AND y_min <= $4 AND y_max >= $2",
+                   b.min().x(), b.min().y(), b.max().x(), b.max().y())[0][0]
+      .c_str();
+}
+
+// A shard's server could not be reached (postgres_fdw names the foreign server it failed on).
+inline std::string shard_hint(const std::string& message) {
+  return message.find("server \"slamvdb_shard_") != std::string::npos
+             ? " (a shard of this fleet is down: regions on other shards still answer)"
+             : "";
+}
+
 inline std::string trimmed_message(std::string text) {
   while (!text.empty() && (text.back() == '\n' || text.back() == ' ')) text.pop_back();
   return text;

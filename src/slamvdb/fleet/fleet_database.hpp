@@ -16,7 +16,9 @@ namespace slamvdb::fleet {
 
 // The schema version this build writes and reads. Older databases are migrated step by step;
 // a newer one is refused (an older slamvdb must not write rows it does not understand).
-inline constexpr int kFleetSchemaVersion = 2;  // 2: per-submap embedding caps
+inline constexpr int kFleetSchemaVersion = 3;  // 2: per-submap embedding caps; 3: shards
+// The side of the tiles a fleet is split by across shards (metres, fleet frame; schema version 3).
+inline constexpr double kFleetTileSide = 500.0;
 
 struct SchemaCheck {
   int found_version = 0;  // 0: the database had no fleet schema
@@ -69,6 +71,16 @@ class FleetDatabase {
   // The catalog rows of the region's submaps (request.only ignored): keys, boxes, summaries; no
   // payload is read. In pull's order.
   std::vector<RegionSubmap> region_catalog(const PullRequest& request);
+
+  // Adds a shard server to this fleet (docs/fleet-design.md, "Scale out"): `shard_url` names an
+  // empty database on it where PostGIS is installed; its tables are created there and attached to
+  // this coordinator through postgres_fdw. An empty coordinator becomes a sharded fleet (its
+  // submaps and payload rows live only on shards from then on); a fleet that already holds submaps
+  // in its own tables is refused. New tiles go to the newest shard; returns the shard's id.
+  // `name`: [a-z][a-z0-9_]*, at most 40 characters, unique in the fleet.
+  int add_shard(const std::string& name, const std::string& shard_url);
+  // The shards of the fleet, id and name in id order (empty: the fleet is on this server only).
+  std::vector<std::pair<int, std::string>> shards();
 
   const std::string& display_url() const { return display_url_; }
 

@@ -85,14 +85,14 @@ PullReport FleetDatabase::pull(const PullRequest& request, const std::function<v
     const std::string names = text_array(request.sessions);
     const pqxx::result submaps = tx.exec_params(
         "SELECT s.id, s.name, m.submap, m.t_world_submap::text, s.t_fleet_session::text, m.time_begin, m.time_end, "
-        "m.path_length, m.blocks, m.known_voxels, m.occupied_voxels, m.semantic_voxels, m.payload_format "
+        "m.path_length, m.blocks, m.known_voxels, m.occupied_voxels, m.semantic_voxels, m.payload_format, m.shard "
         "FROM slamvdb.submaps m JOIN slamvdb.sessions s ON s.id = m.session "
-        "WHERE m.footprint && ST_MakeEnvelope($1, $2, $3, $4, 0) AND m.z_max >= $5 AND m.z_min <= $6 "
-        "AND ($7 OR s.name = ANY($8::text[])) "
+        "WHERE m.shard = ANY($12::integer[]) AND m.footprint && ST_MakeEnvelope($1, $2, $3, $4, 0) "
+        "AND m.z_max >= $5 AND m.z_min <= $6 AND ($7 OR s.name = ANY($8::text[])) "
         "AND ($9 OR (m.session, m.submap) IN (SELECT * FROM unnest($10::bigint[], $11::int[]))) "
         "ORDER BY s.id, m.submap",
         b.min().x(), b.min().y(), b.max().x(), b.max().y(), b.min().z(), b.max().z(), request.sessions.empty(), names,
-        !request.only.has_value(), key_array(request.only, true), key_array(request.only, false));
+        !request.only.has_value(), key_array(request.only, true), key_array(request.only, false), region_shards(tx, b));
     for (const pqxx::row& row : submaps) {
       const int64_t session = row[0].as<int64_t>();
       const std::string name = row[1].as<std::string>();
@@ -109,19 +109,21 @@ PullReport FleetDatabase::pull(const PullRequest& request, const std::function<v
       summary.occupied_voxels = row[10].as<std::size_t>();
       summary.semantic_voxels = row[11].as<std::size_t>();
       const int format = row[12].as<int>();
+      const int shard = row[13].as<int>();
       try {
         store::OccupancyRowReader occupancy(id, format, fleet.params);
         for (const pqxx::row& r : tx.exec_params("SELECT bx, by, bz, log_odds, crc FROM slamvdb.occupancy WHERE "
-                                                 "session = $1 AND submap = $2",
-                                                 session, id)) {
+                                                 "session = $1 AND submap = $2 AND shard = $3",
+                                                 session, id, shard)) {
           const pqxx::binarystring blob(r[3]);
           occupancy.add(r[0].as<int64_t>(), r[1].as<int64_t>(), r[2].as<int64_t>(), bytes_of(blob), r[4].as<int64_t>());
           ++report.rows, report.payload_bytes += blob.size();
         }
         store::SemanticChunkReader semantics(id, format, fleet.params);
         for (const pqxx::row& r : tx.exec_params("SELECT chunk, keys, counts, embeddings, crc, stats, stats_crc FROM "
-                                                 "slamvdb.semantics WHERE session = $1 AND submap = $2 ORDER BY chunk",
-                                                 session, id)) {
+                                                 "slamvdb.semantics WHERE session = $1 AND submap = $2 AND shard = $3 "
+                                                 "ORDER BY chunk",
+                                                 session, id, shard)) {
           const pqxx::binarystring keys(r[1]), counts(r[2]), embeddings(r[3]), stats(r[5]);
           semantics.add(r[0].as<int64_t>(), bytes_of(keys), bytes_of(counts), bytes_of(embeddings), r[4].as<int64_t>(),
                         bytes_of(stats), r[6].as<int64_t>());
@@ -138,7 +140,8 @@ PullReport FleetDatabase::pull(const PullRequest& request, const std::function<v
       ++report.submaps;
     }
   } catch (const pqxx::failure& e) {
-    throw Error(fmt::format("pull from the fleet database {}: {}", display_url_, trimmed_message(e.what())));
+    throw Error(fmt::format("pull from the fleet database {}: {}{}", display_url_, trimmed_message(e.what()),
+                            shard_hint(e.what())));
   }
   report.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return report;

@@ -88,7 +88,52 @@ ALTER TABLE slamvdb.submaps
     CHECK (embedding_radius IS NULL OR (embedding_radius >= 0 AND embedding_centroid IS NOT NULL));
 )sql";
 
-constexpr std::array<const char*, kFleetSchemaVersion> kMigrations{kVersion1, kVersion2};
+// Version 3: the fleet can be split by region across servers (docs/fleet-design.md, "Scale out").
+// Every catalog and payload row carries the id of the shard that holds it (0: this database's own
+// tables, the only shard of a fleet on one server); a sharded coordinator partitions the three
+// tables by that column, each partition a postgres_fdw foreign table on a shard server
+// (fleet_shards.cpp). A submap's home tile (a 500 m square of the fleet frame, at the centre of its
+// footprint when first pushed) fixes its shard for good; each tile's extent grows with every
+// footprint pushed into it, so a region asks only the shards whose tiles' extents meet it.
+// Also: embeddings are stored without TOAST compression (STORAGE EXTERNAL, as occupancy's
+// log-odds): pglz gains nothing on fp16/fp32 embeddings (the benchmark's rows: 13.1 MB in, 13.1 MB
+// stored) and its failed attempt was a quarter of the server's COPY time (docs/fleet-design.md,
+// "Measurements"); keys, counts and statistics keep EXTENDED (they compress).
+constexpr const char* kVersion3 = R"sql(
+ALTER TABLE slamvdb.semantics ALTER COLUMN embeddings SET STORAGE EXTERNAL;
+ALTER TABLE slamvdb.submaps ADD COLUMN shard integer NOT NULL DEFAULT 0;
+ALTER TABLE slamvdb.occupancy ADD COLUMN shard integer NOT NULL DEFAULT 0;
+ALTER TABLE slamvdb.semantics ADD COLUMN shard integer NOT NULL DEFAULT 0;
+CREATE TABLE slamvdb.shards(
+  id integer PRIMARY KEY CHECK (id > 0),
+  name text NOT NULL UNIQUE,
+  server name NOT NULL,
+  added_at timestamptz NOT NULL DEFAULT now());
+CREATE TABLE slamvdb.tiles(
+  tile_x integer NOT NULL,
+  tile_y integer NOT NULL,
+  shard integer NOT NULL,
+  x_min double precision NOT NULL DEFAULT 'Infinity',
+  y_min double precision NOT NULL DEFAULT 'Infinity',
+  x_max double precision NOT NULL DEFAULT '-Infinity',
+  y_max double precision NOT NULL DEFAULT '-Infinity',
+  PRIMARY KEY (tile_x, tile_y));
+CREATE TABLE slamvdb.submap_homes(
+  session bigint NOT NULL REFERENCES slamvdb.sessions(id) ON DELETE CASCADE,
+  submap integer NOT NULL,
+  tile_x integer NOT NULL,
+  tile_y integer NOT NULL,
+  PRIMARY KEY (session, submap));
+INSERT INTO slamvdb.submap_homes
+  SELECT session, submap, floor((ST_XMin(footprint) + ST_XMax(footprint)) / 1000)::integer,
+         floor((ST_YMin(footprint) + ST_YMax(footprint)) / 1000)::integer FROM slamvdb.submaps;
+INSERT INTO slamvdb.tiles
+  SELECT h.tile_x, h.tile_y, 0, min(ST_XMin(m.footprint)), min(ST_YMin(m.footprint)), max(ST_XMax(m.footprint)),
+         max(ST_YMax(m.footprint))
+  FROM slamvdb.submap_homes h JOIN slamvdb.submaps m USING (session, submap) GROUP BY h.tile_x, h.tile_y;
+)sql";
+
+constexpr std::array<const char*, kFleetSchemaVersion> kMigrations{kVersion1, kVersion2, kVersion3};
 
 }  // namespace
 

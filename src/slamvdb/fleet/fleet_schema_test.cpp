@@ -42,7 +42,7 @@ TEST_F(FleetSchema, AnEmptyDatabaseGetsPostgisAndTheSchemaOnceAndIsLeftAloneAfte
   EXPECT_EQ(sql("SELECT string_agg(table_name, ',' ORDER BY table_name) FROM information_schema.tables "
                 "WHERE table_schema = 'slamvdb'",
                 db),
-            "fleet,occupancy,schema_info,semantics,sessions,submaps");
+            "fleet,occupancy,schema_info,semantics,sessions,shards,submap_homes,submaps,tiles");
   // The region look-up's index: a GiST index on the footprints.
   EXPECT_EQ(sql("SELECT count(*) FROM pg_indexes WHERE schemaname = 'slamvdb' AND tablename = 'submaps' "
                 "AND indexdef LIKE '%USING gist (footprint)%'",
@@ -53,6 +53,11 @@ TEST_F(FleetSchema, AnEmptyDatabaseGetsPostgisAndTheSchemaOnceAndIsLeftAloneAfte
                 "AND attname = 'log_odds'",
                 db),
             "e");
+  // Nor embeddings, where pglz gains nothing (version 3); the small key and count blobs compress.
+  EXPECT_EQ(sql("SELECT string_agg(attname || '=' || attstorage::text, ',' ORDER BY attname) FROM pg_attribute "
+                "WHERE attrelid = 'slamvdb.semantics'::regclass AND atttypid = 'bytea'::regtype",
+                db),
+            "counts=x,embeddings=e,keys=x,stats=x");
   // A second check (another process, later) changes nothing.
   sql("INSERT INTO slamvdb.sessions(name, t_fleet_session) VALUES ('monday', array_fill(0::float8, ARRAY[16]))", db);
   const SchemaCheck second = FleetDatabase(server_->url(db)).ensure_schema();
@@ -99,8 +104,13 @@ TEST_F(FleetSchema, AVersionOneDatabaseIsMigratedKeepingItsRowsWithoutSummaries)
   const SchemaCheck check = fleet.ensure_schema();
   EXPECT_TRUE(check.migrated());
   EXPECT_EQ(check.found_version, 1);
-  EXPECT_EQ(fleet.schema_version(), 2);
-  EXPECT_EQ(sql("SELECT version FROM slamvdb.schema_info", db), "2");
+  EXPECT_EQ(fleet.schema_version(), kFleetSchemaVersion);
+  EXPECT_EQ(sql("SELECT version FROM slamvdb.schema_info", db), std::to_string(kFleetSchemaVersion));
+  // Version 3: the row is on this server's own shard (0), its home tile and the tile's extent
+  // come from its footprint, so a region query still finds it.
+  EXPECT_EQ(sql("SELECT shard FROM slamvdb.submaps", db), "0");
+  EXPECT_EQ(sql("SELECT submap, tile_x, tile_y FROM slamvdb.submap_homes", db), "4|0|0");
+  EXPECT_EQ(sql("SELECT tile_x, tile_y, shard, x_min, y_min, x_max, y_max FROM slamvdb.tiles", db), "0|0|0|0|0|1|1");
   // The old row is kept, without a summary (so a query always reads it).
   EXPECT_EQ(sql("SELECT submap, embedding_radius IS NULL, embedding_centroid IS NULL FROM slamvdb.submaps", db), "4|t|t");
   EXPECT_FALSE(fleet.ensure_schema().migrated());  // a second look changes nothing

@@ -63,10 +63,10 @@ std::vector<RegionSubmap> FleetDatabase::region_catalog(const PullRequest& reque
              "SELECT m.session, m.submap, ST_XMin(m.footprint), ST_YMin(m.footprint), m.z_min, ST_XMax(m.footprint), "
              "ST_YMax(m.footprint), m.z_max, m.embedding_centroid::text, m.embedding_radius "
              "FROM slamvdb.submaps m JOIN slamvdb.sessions s ON s.id = m.session "
-             "WHERE m.footprint && ST_MakeEnvelope($1, $2, $3, $4, 0) AND m.z_max >= $5 AND m.z_min <= $6 "
-             "AND ($7 OR s.name = ANY($8::text[])) ORDER BY s.id, m.submap",
+             "WHERE m.shard = ANY($9::integer[]) AND m.footprint && ST_MakeEnvelope($1, $2, $3, $4, 0) "
+             "AND m.z_max >= $5 AND m.z_min <= $6 AND ($7 OR s.name = ANY($8::text[])) ORDER BY s.id, m.submap",
              b.min().x(), b.min().y(), b.max().x(), b.max().y(), b.min().z(), b.max().z(), request.sessions.empty(),
-             names)) {
+             names, region_shards(tx, b))) {
       RegionSubmap s;
       s.key = {row[0].as<int64_t>(), row[1].as<int>()};
       s.bounds_fleet = Eigen::AlignedBox3d(Vec3d(row[2].as<double>(), row[3].as<double>(), row[4].as<double>()),
@@ -77,7 +77,7 @@ std::vector<RegionSubmap> FleetDatabase::region_catalog(const PullRequest& reque
       out.push_back(std::move(s));
     }
   } catch (const pqxx::failure& e) {
-    throw Error(fmt::format("fleet database {}: {}", display_url_, trimmed_message(e.what())));
+    throw Error(fmt::format("fleet database {}: {}{}", display_url_, trimmed_message(e.what()), shard_hint(e.what())));
   }
   return out;
 }

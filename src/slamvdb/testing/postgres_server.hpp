@@ -65,7 +65,7 @@ class PostgresServer {
 
   void start() {
     // fsync off: a test server's data need not survive a power cut, only a server kill.
-    const std::filesystem::path log = root_ / "server.log";
+    const std::filesystem::path log = log_file();
     const CommandResult r = run_command(
         as_user_ + bin("pg_ctl") + " -D " + quote_path(data()) + " -l " + quote_path(log) + " -w -t 60 -o " +
             shell_quote("-k " + socket_dir_.string() + " -c listen_addresses='' -p 5432 -c fsync=off -c max_connections=40") +
@@ -121,6 +121,8 @@ class PostgresServer {
     return r.output;
   }
   std::filesystem::path data() const { return root_ / "data"; }
+  // The server's log (pg_ctl -l): what a test reads to see which statements a server ran.
+  std::filesystem::path log_file() const { return root_ / "server.log"; }
 
  private:
   static std::string bin(const std::string& name) { return std::string(kBinDir) + "/" + name; }
