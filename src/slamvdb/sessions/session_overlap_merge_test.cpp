@@ -15,14 +15,14 @@
 namespace slamvdb::sessions {
 namespace {
 
-constexpr int kPatchDim = 8;
-constexpr double kPatchVoxel = 0.2;
+constexpr int kOverlapPatchDim = 8;
+constexpr double kOverlapPatchVoxel = 0.2;
 
 // What session `seed` saw at world voxel (x, y): its view count and its mean embedding.
-uint32_t patch_count(int seed, int x, int y) { return static_cast<uint32_t>(1 + (3 * x + y + seed) % 5); }
-std::vector<float> patch_embedding(int seed, int x, int y) {
-  std::vector<float> e(kPatchDim);
-  for (int d = 0; d < kPatchDim; ++d) e[d] = static_cast<float>(std::sin(1.3 * seed + 0.1 * x + 0.07 * y + d));
+uint32_t overlap_patch_count(int seed, int x, int y) { return static_cast<uint32_t>(1 + (3 * x + y + seed) % 5); }
+std::vector<float> overlap_patch_embedding(int seed, int x, int y) {
+  std::vector<float> e(kOverlapPatchDim);
+  for (int d = 0; d < kOverlapPatchDim; ++d) e[d] = static_cast<float>(std::sin(1.3 * seed + 0.1 * x + 0.07 * y + d));
   return e;
 }
 
@@ -30,8 +30,8 @@ std::vector<float> patch_embedding(int seed, int x, int y) {
 // first column is world voxel column start (the anchor moved by whole voxels), log-odds 1 each.
 SemanticMap overlap_patch_map(int seed, const std::vector<int>& starts, double t0 = 0) {
   MapParams params;
-  params.occupancy.voxel_size = kPatchVoxel;
-  params.semantic = {kPatchDim, EmbeddingPrecision::kFloat32};
+  params.occupancy.voxel_size = kOverlapPatchVoxel;
+  params.semantic = {kOverlapPatchDim, EmbeddingPrecision::kFloat32};
   SemanticMap map(params, {.model_id = "simulated-clip-test", .source = "SIMULATED patches " + std::to_string(seed)});
   int id = 0;
   for (const int start : starts) {
@@ -39,37 +39,39 @@ SemanticMap overlap_patch_map(int seed, const std::vector<int>& starts, double t
     for (int x = 0; x < 40; ++x)
       for (int y = 0; y < 20; ++y) {
         voxels.occupancy().set_log_odds({x, y, 0}, 1.0f);
-        voxels.semantics().set({x, y, 0}, patch_embedding(seed, start + x, y).data(), patch_count(seed, start + x, y));
+        voxels.semantics().set({x, y, 0}, overlap_patch_embedding(seed, start + x, y).data(),
+                               overlap_patch_count(seed, start + x, y));
       }
     SubmapInfo info;
     info.id = id++;
-    info.T_world_submap.translation() = Vec3d(start * kPatchVoxel, 0, 0);
+    info.T_world_submap.translation() = Vec3d(start * kOverlapPatchVoxel, 0, 0);
     info.time_range = {t0, t0 + 5};
     map.add_finished_submap(info, std::move(voxels));
   }
   return map;
 }
 
-struct WorldVoxel {
+struct OverlapWorldVoxel {
   uint64_t count = 0;
   std::vector<float> mean;
   float log_odds = 0;
 };
 
 // Every occupied voxel of `map` by its world key; fails the test if a place is in two submaps.
-std::map<VoxelKey, WorldVoxel> overlap_world_voxels(const SemanticMap& map) {
-  std::map<VoxelKey, WorldVoxel> out;
+std::map<VoxelKey, OverlapWorldVoxel> overlap_world_voxels(const SemanticMap& map) {
+  std::map<VoxelKey, OverlapWorldVoxel> out;
   for (const SubmapInfo& info : map.submaps())
     map.read_submap(info.id, [&](const Submap& s) {
       const SemanticLayer& layer = s.voxels().semantics();
       s.voxels().occupancy().for_each_occupied([&](const VoxelKey& k, float lo) {
-        const auto key = key_of_point<VoxelKey>(info.T_world_submap * center_of_key(k, kPatchVoxel), 1 / kPatchVoxel);
+        const Vec3d p_world = info.T_world_submap * center_of_key(k, kOverlapPatchVoxel);
+        const auto key = key_of_point<VoxelKey>(p_world, 1 / kOverlapPatchVoxel);
         const auto [it, inserted] = out.try_emplace(key);
         EXPECT_TRUE(inserted) << "world voxel " << key.x() << "," << key.y() << " is in two submaps";
         it->second.log_odds = lo;
         if (const auto h = layer.find(k)) {
           it->second.count = layer.count_of(*h);
-          it->second.mean.resize(kPatchDim);
+          it->second.mean.resize(kOverlapPatchDim);
           layer.read(*h, it->second.mean.data());
         }
       });
@@ -78,19 +80,19 @@ std::map<VoxelKey, WorldVoxel> overlap_world_voxels(const SemanticMap& map) {
 }
 
 // The count-weighted mean of what the sessions `seeds` (patches starting at `starts`) saw.
-void expect_patch_voxels(const std::map<VoxelKey, WorldVoxel>& world, const std::vector<int>& seeds,
+void expect_overlap_patch_voxels(const std::map<VoxelKey, OverlapWorldVoxel>& world, const std::vector<int>& seeds,
                          const std::vector<int>& starts) {
   std::size_t places = 0;
   for (int x = -10; x < 100; ++x)
     for (int y = 0; y < 20; ++y) {
       uint64_t count = 0;
-      std::vector<double> sum(kPatchDim, 0.0);
+      std::vector<double> sum(kOverlapPatchDim, 0.0);
       int seen = 0;
       for (std::size_t i = 0; i < seeds.size(); ++i) {
         if (x < starts[i] || x >= starts[i] + 40) continue;
-        const uint32_t n = patch_count(seeds[i], x, y);
-        const std::vector<float> e = patch_embedding(seeds[i], x, y);
-        for (int d = 0; d < kPatchDim; ++d) sum[d] += n * static_cast<double>(e[d]);
+        const uint32_t n = overlap_patch_count(seeds[i], x, y);
+        const std::vector<float> e = overlap_patch_embedding(seeds[i], x, y);
+        for (int d = 0; d < kOverlapPatchDim; ++d) sum[d] += n * static_cast<double>(e[d]);
         count += n, ++seen;
       }
       const auto it = world.find(VoxelKey(x, y, 0));
@@ -102,7 +104,7 @@ void expect_patch_voxels(const std::map<VoxelKey, WorldVoxel>& world, const std:
       ASSERT_NE(it, world.end()) << x << "," << y;
       EXPECT_EQ(it->second.count, count) << x << "," << y;
       EXPECT_FLOAT_EQ(it->second.log_odds, static_cast<float>(seen)) << x << "," << y;
-      for (int d = 0; d < kPatchDim; ++d) EXPECT_NEAR(it->second.mean[d], sum[d] / count, 1e-5) << x << "," << y;
+      for (int d = 0; d < kOverlapPatchDim; ++d) EXPECT_NEAR(it->second.mean[d], sum[d] / count, 1e-5) << x << "," << y;
     }
   EXPECT_EQ(places, world.size());
 }
@@ -131,7 +133,7 @@ TEST(MergeOverlappingSessions, TwoDrivesOverPartlyTheSamePlaceBecomeOneSubmapWit
   EXPECT_EQ(submap.session, 0);
   EXPECT_EQ(submap.time_range.begin, 10.0);
   EXPECT_EQ(submap.time_range.end, 15.0) << "monday's times only";
-  expect_patch_voxels(overlap_world_voxels(merged), {1, 2}, {0, 10});
+  expect_overlap_patch_voxels(overlap_world_voxels(merged), {1, 2}, {0, 10});
 }
 
 TEST(MergeOverlappingSessions, IsAssociativeOnCountsAndMeans) {
@@ -145,17 +147,17 @@ TEST(MergeOverlappingSessions, IsAssociativeOnCountsAndMeans) {
   right.push_back(overlap_patch_map(1, {0})), right.push_back(merge_session_maps(bc, {"b", "c"}, report));
   const SemanticMap abc2 = merge_session_maps(right, {"a", "bc"}, report);
   EXPECT_EQ(report.merged.observations, observations);
-  const std::map<VoxelKey, WorldVoxel> w1 = overlap_world_voxels(abc1), w2 = overlap_world_voxels(abc2);
+  const std::map<VoxelKey, OverlapWorldVoxel> w1 = overlap_world_voxels(abc1), w2 = overlap_world_voxels(abc2);
   ASSERT_EQ(w1.size(), 1200u);
   ASSERT_EQ(w2.size(), w1.size());
   for (const auto& [key, v] : w1) {
-    const WorldVoxel& u = w2.at(key);
+    const OverlapWorldVoxel& u = w2.at(key);
     EXPECT_EQ(u.count, v.count);
     EXPECT_EQ(u.log_odds, v.log_odds);
-    for (int d = 0; d < kPatchDim; ++d) EXPECT_NEAR(u.mean[d], v.mean[d], 1e-5);
+    for (int d = 0; d < kOverlapPatchDim; ++d) EXPECT_NEAR(u.mean[d], v.mean[d], 1e-5);
   }
-  expect_patch_voxels(w1, {1, 2, 3}, {0, 10, 20});
-  expect_patch_voxels(w2, {1, 2, 3}, {0, 10, 20});
+  expect_overlap_patch_voxels(w1, {1, 2, 3}, {0, 10, 20});
+  expect_overlap_patch_voxels(w2, {1, 2, 3}, {0, 10, 20});
   EXPECT_EQ(abc1.num_submaps(), 1u);
   EXPECT_EQ(abc2.num_submaps(), 1u);
 }
