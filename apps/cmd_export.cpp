@@ -17,6 +17,7 @@
 #include "io_options.hpp"
 #include "option_checks.hpp"
 #include "progress.hpp"
+#include "session_option.hpp"
 #include "slamvdb/core/csv.hpp"
 #include "slamvdb/core/error.hpp"
 #include "slamvdb/core/output_file.hpp"
@@ -39,6 +40,7 @@ struct Options {
   double resolution = 0.0;
   std::string layer = "auto";
   ColourBasisChoice colour_basis;
+  std::vector<std::string> sessions;  // empty: every session
 };
 
 // The format of an output: --format for a single output, else its extension.
@@ -69,7 +71,7 @@ void run(Options opt) {
                               opt.colour_basis.file, escape_control(opt.colour_basis.model_id), opt.map,
                               escape_control(summary.info.model_id)));
   }
-  const SemanticMap map = load_map(opt.map);
+  const SemanticMap map = load_map_of_sessions(opt.map, opt.sessions);
   std::optional<QuerySet> queries;
   std::vector<ClassifiedCell> cells;
   if (!opt.queries.empty()) {
@@ -192,6 +194,7 @@ void add(CLI::App& root) {
   cmd->add_flag("--ignore-model-id", opt->ignore_model_id,
                 "With --queries or --colour-basis: accept another model id (same dim)");
   add_colour_basis_option(cmd, opt->colour_basis);
+  add_session_option(cmd, opt->sessions, "Only these sessions' submaps (as `info` lists them; repeatable)");
   add_option_checks(cmd, [opt] {
     if (!opt->colour_basis.file.empty() && !opt->queries.empty())
       usage_error("--colour-basis colours by PCA; with --queries the colours are the classes'");

@@ -1,10 +1,11 @@
 // `slamvdb merge A B [...] -o SITE`: maps of different sessions that share one world (`align`)
-// as one map file holding every session's submaps, each still in its session
-// (sessions/map_merge.hpp). Inputs that cannot share a world are refused from their metadata,
+// as one map file holding every session's submaps, each still in its session, submaps of
+// different sessions over the same place merged into one (sessions/map_merge.hpp). Inputs that cannot share a world are refused from their metadata,
 // naming the difference, before any voxel is loaded; the output is written whole or not at all.
 #include <fmt/format.h>
 
 #include <memory>
+#include <string>
 #include <nlohmann/json.hpp>
 #include <vector>
 
@@ -23,6 +24,8 @@ namespace {
 struct Options {
   std::vector<std::string> maps;
   std::string output, json;
+  sessions::OverlapMergeOptions overlap;
+  bool keep_apart = false;
 };
 
 nlohmann::json merge_contents_json(const sessions::MapContents& c) {
@@ -48,7 +51,7 @@ void run(const Options& opt, const std::string& config) {
   sessions::MapMergeReport report;
   SemanticMap merged = [&] {
     try {
-      return sessions::merge_session_maps(inputs, opt.maps, report);  // checks that no count is lost
+      return sessions::merge_session_maps(inputs, opt.maps, report, opt.overlap);  // checks that no count is lost
     } catch (const Error& e) {
       throw Error(fmt::format("{}: {} not written", e.what(), opt.output));
     }
@@ -63,8 +66,16 @@ void run(const Options& opt, const std::string& config) {
     fmt::print("input      {}: {} sessions, {} submaps, {} semantic voxels, {} observations\n", opt.maps[i],
                report.inputs[i].sessions, report.inputs[i].submaps, report.inputs[i].semantic_voxels,
                report.inputs[i].observations);
-  fmt::print("merged     {} sessions, {} submaps, {} occupied and {} semantic voxels, {} observations (none lost)\n",
-             m.sessions, m.submaps, m.occupied_voxels, m.semantic_voxels, m.observations);
+  uint64_t dropped = 0;
+  for (const sessions::SubmapAbsorption& a : report.absorbed) {
+    fmt::print("overlap    submap {} (session {}) merged into submap {} (session {}): {:.1f}% overlap, {} observations\n",
+               a.source_id, a.source_session, a.target_id, a.target_session, 100 * a.overlap, a.observations_moved);
+    dropped += a.observations_dropped_free + a.observations_clipped;
+  }
+  fmt::print("merged     {} sessions, {} submaps, {} occupied and {} semantic voxels, {} observations ({})\n",
+             m.sessions, m.submaps, m.occupied_voxels, m.semantic_voxels, m.observations,
+             dropped == 0 ? std::string("none lost")
+                          : fmt::format("{} dropped where merged voxels became free or counts saturated", dropped));
   fmt::print("wrote {} ({:.1f} MB)\n", opt.output, static_cast<double>(written.file_bytes) / 1e6);
   if (!opt.json.empty()) {
     nlohmann::json j = {{"output", opt.output}, {"merged", merge_contents_json(m)}, {"inputs", nlohmann::json::array()}};
@@ -73,6 +84,16 @@ void run(const Options& opt, const std::string& config) {
       input["path"] = opt.maps[i];
       j["inputs"].push_back(input);
     }
+    j["overlap_merges"] = nlohmann::json::array();
+    for (const sessions::SubmapAbsorption& a : report.absorbed)
+      j["overlap_merges"].push_back({{"target_submap", a.target_id},
+                                     {"source_submap", a.source_id},
+                                     {"target_session", a.target_session},
+                                     {"source_session", a.source_session},
+                                     {"overlap", a.overlap},
+                                     {"observations", a.observations_moved},
+                                     {"observations_dropped_free", a.observations_dropped_free},
+                                     {"observations_clipped", a.observations_clipped}});
     write_output_file(opt.json, j.dump(2) + "\n");
   }
 }
@@ -82,8 +103,10 @@ void add(CLI::App& root) {
   auto* cmd = root.add_subcommand(
       "merge",
       "Merge maps of different sessions that share one world (made so by `slamvdb align`) into one map file: every "
-      "input's submaps, each in the session it was mapped in (`info` lists them). Submaps of different sessions over "
-      "the same place stay separate submaps (queries read them together through the global index). Refuses (exit 1, "
+      "input's submaps, each in the session it was mapped in (`info` lists them). A submap whose occupied voxels "
+      "overlap those of an earlier input's submap of another session enough (--min-overlap) is merged into it as the "
+      "loop closer merges (counts add, embeddings by count-weighted mean, every voxel once); the merged submap stays "
+      "in the earlier session. Refuses (exit 1, "
       "naming the difference; nothing written) maps with different voxel sizes, embedding models, embedding "
       "dimensions, ontologies or occupancy settings.");
   cmd->add_option("maps", opt->maps, "The maps to merge (.svdb), two or more")
@@ -92,12 +115,20 @@ void add(CLI::App& root) {
       ->check(CLI::ExistingFile);
   cmd->add_option("-o,--output", opt->output, "The merged map file to write (.svdb)")->required();
   cmd->add_option("--json", opt->json, "Write what each input held and what the merged map holds as JSON");
+  cmd->add_option("--min-overlap", opt->overlap.min_overlap,
+                  "Merge two submaps of different sessions when this fraction of the smaller one's occupied voxels "
+                  "lands on the other's")
+      ->check(finite_range(0, 1, true))
+      ->capture_default_str();
+  cmd->add_flag("--keep-sessions-apart", opt->keep_apart,
+                "Merge no submaps: each stays in its own session (for --session on export, query, classify)");
   auto io = std::make_shared<IoOptions>(cmd);
   io->input("maps", opt->maps);
   io->output("-o", opt->output);
   io->output("--json", opt->json);
   cmd->callback([opt, io, cmd] {
     io->check();
+    opt->overlap.enabled = !opt->keep_apart;
     run(*opt, effective_config(*cmd));
   });
 }

@@ -2,6 +2,7 @@
 // Where `query` and `classify` read the map: a map file (the positional argument), or a region of
 // a fleet map (--db URL with --bbox or --near/--radius, and --session): PostGIS selects the
 // region's submaps and only those are read, so the answers equal those on the pulled file.
+// --session also restricts a map file to those sessions' submaps (session_option.hpp).
 #include <CLI/CLI.hpp>
 #include <fmt/format.h>
 
@@ -12,6 +13,7 @@
 
 #include "option_checks.hpp"
 #include "region_options.hpp"
+#include "session_option.hpp"
 #include "slamvdb/fleet/fleet_database.hpp"
 #include "slamvdb/fleet/fleet_search.hpp"
 #include "slamvdb/store/map_store.hpp"
@@ -27,14 +29,15 @@ struct MapSourceOptions {
     cmd->add_option("--db", db,
                     "Ask a fleet map instead of a file: a libpq connection string (PostgreSQL + PostGIS, see "
                     "`push`); needs a region (--bbox or --near with --radius), whose submaps alone are read");
-    cmd->add_option("--session", sessions, "With --db: only these sessions (repeatable; default: every session)");
+    add_session_option(cmd, sessions,
+                       "Only these sessions' submaps, of the map file or with --db of the fleet map (repeatable; "
+                       "default: every session)");
   }
   // Usage checks before any work (exit 2).
   void check(const RegionOptions& region) const {
     if (map.empty() == db.empty()) usage_error("give a map file or --db URL (one of the two)");
     if (!db.empty() && !region.given())
       usage_error("--db needs a region (--bbox, or --near with --radius): a fleet map is not read whole");
-    if (db.empty() && !sessions.empty()) usage_error("--session selects sessions of a fleet map: it needs --db");
   }
   // For messages and titles: the file, or the fleet's URL without its password.
   std::string name() const { return db.empty() ? map : fleet::redact_connection_url(db); }
@@ -57,7 +60,7 @@ struct MapSourceOptions {
     return std::move(pruned.map);
   }
   SemanticMap read(const std::optional<QueryRegion>& region) const {
-    if (db.empty()) return load_map(map);
+    if (db.empty()) return load_map_of_sessions(map, sessions);
     fleet::FleetDatabase fleet(db);
     return fleet.pull_map({region->bounds(), sessions});
   }

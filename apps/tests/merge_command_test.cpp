@@ -2,6 +2,7 @@
 // tests' synthetic maps (testing/map_store_fixtures.hpp): every input's submaps and view counts
 // in the output, one session per input named after its file; incompatible inputs refused
 // (exit 1, naming the difference, nothing written); fewer than two inputs a usage error.
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 #include <unistd.h>
 
@@ -85,6 +86,34 @@ TEST_F(MergeCommand, RefusesMapsThatCannotShareAWorldAndWritesNothing) {
   EXPECT_NE(r.output.find("different voxel sizes: base 0.2 m, other 0.5 m"), std::string::npos) << r.output;
   EXPECT_NE(r.output.find("not written"), std::string::npos) << r.output;
   EXPECT_FALSE(fs::exists(dir_ / "site.svdb"));
+}
+
+TEST_F(MergeCommand, TheSameDriveTwiceMergesIntoOneSubmapPerPlaceAndCountsWhatSaturates) {
+  fs::copy_file(dir_ / "monday.svdb", dir_ / "again.svdb");
+  const CommandResult r = run_cli("merge " + q("monday.svdb") + " " + q("again.svdb") + " -o " + q("site.svdb") +
+                                  " --json " + q("merge.json"));
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("overlap    submap 2 (session 1) merged into submap 0 (session 0): 100.0% overlap"),
+            std::string::npos) << r.output;
+  const MapFileSummary one = read_map_summary(dir_ / "monday.svdb"), site = read_map_summary(dir_ / "site.svdb");
+  EXPECT_EQ(site.submaps.size(), one.submaps.size()) << "each place once";
+  EXPECT_EQ(site.occupied_voxels, one.occupied_voxels);
+  EXPECT_EQ(site.info.sessions.size(), 2u) << "both drives listed";
+  // Each submap has a voxel seen UINT32_MAX times: twice that does not fit, and is reported.
+  const uint64_t once = merge_command_observations(dir_ / "monday.svdb");
+  EXPECT_EQ(merge_command_observations(dir_ / "site.svdb"), 2 * once - 2 * uint64_t{UINT32_MAX});
+  EXPECT_NE(r.output.find(fmt::format("{} dropped where merged voxels became free or counts saturated",
+                                      2 * uint64_t{UINT32_MAX})),
+            std::string::npos) << r.output;
+  nlohmann::json j;
+  std::ifstream(dir_ / "merge.json") >> j;
+  ASSERT_EQ(j.at("overlap_merges").size(), 2u);
+  EXPECT_EQ(j.at("overlap_merges").at(1).at("observations_clipped").get<uint64_t>(), uint64_t{UINT32_MAX});
+  const CommandResult apart = run_cli("merge " + q("monday.svdb") + " " + q("again.svdb") + " -o " + q("apart.svdb") +
+                                      " --keep-sessions-apart");
+  ASSERT_EQ(apart.exit_code, 0) << apart.output;
+  EXPECT_EQ(read_map_summary(dir_ / "apart.svdb").submaps.size(), 2 * one.submaps.size());
+  EXPECT_EQ(merge_command_observations(dir_ / "apart.svdb"), 2 * once);
 }
 
 TEST_F(MergeCommand, OneInputIsAUsageError) {

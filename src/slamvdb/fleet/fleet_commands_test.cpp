@@ -167,7 +167,11 @@ TEST(FleetQuery, QueryAndClassifyOnTheFleetAnswerAsOnThePulledFile) {
   EXPECT_EQ(no_region.exit_code, 2) << no_region.output;
   EXPECT_NE(no_region.output.find("--db needs a region"), std::string::npos) << no_region.output;
   EXPECT_EQ(run_command(cli + "query " + quote_path(region) + " --db " + url + box + " --vector " + quote_path(vector)).exit_code, 2);
-  EXPECT_EQ(run_command(cli + "classify " + quote_path(region) + " --session monday --queries " + quote_path(queries)).exit_code, 2);
+  // On a map file --session restricts to the file's sessions (issue 23); a name it lacks is refused.
+  const auto unknown = run_command(cli + "classify " + quote_path(region) + " --session sunday --queries " +
+                                   quote_path(queries) + " 2>&1");
+  EXPECT_EQ(unknown.exit_code, 1) << unknown.output;
+  EXPECT_NE(unknown.output.find("no session 'sunday'"), std::string::npos) << unknown.output;
 }
 
 }  // namespace

@@ -47,7 +47,7 @@ MapContents map_contents(const SemanticMap& map) {
 }
 
 SemanticMap merge_session_maps(std::vector<SemanticMap>& inputs, const std::vector<std::string>& labels,
-                               MapMergeReport& report) {
+                               MapMergeReport& report, const OverlapMergeOptions& overlap) {
   if (inputs.size() < 2 || labels.size() != inputs.size())
     throw Error(fmt::format("merging needs two maps or more, each with a label ({} maps, {} labels)", inputs.size(),
                             labels.size()));
@@ -76,22 +76,32 @@ SemanticMap merge_session_maps(std::vector<SemanticMap>& inputs, const std::vect
         throw Error(fmt::format("cannot merge {}: its submap {} belongs to session {}, which it does not list",
                                 labels[i], s.id, s.session));
   }
-  SemanticMap merged(inputs[0].params(), info);
-  int next_id = 0;  // input order, then the input's id order
+  std::vector<std::pair<SubmapInfo, VoxelMap>> submaps;  // new ids: input order, then the input's id order
   for (std::size_t i = 0; i < inputs.size(); ++i)
     for (const SubmapInfo& s : inputs[i].submaps()) {
-      auto [moved, voxels] = inputs[i].remove_finished_submap(s.id);
-      moved.id = next_id++;
-      moved.session = new_session_ids[i].at(s.session);
-      merged.add_finished_submap(moved, std::move(voxels));
+      submaps.push_back(inputs[i].remove_finished_submap(s.id));
+      submaps.back().first.id = static_cast<int>(submaps.size()) - 1;
+      submaps.back().first.session = new_session_ids[i].at(s.session);
     }
+  report.absorbed = merge_overlapping_sessions(submaps, overlap);
+  SemanticMap merged(inputs[0].params(), info);
+  for (auto& [submap, voxels] : submaps) merged.add_finished_submap(submap, std::move(voxels));
   report.merged = map_contents(merged);
-  // Nothing may be lost on the way: the merged map holds what the inputs held, count for count.
-  MapContents sum;
-  for (const MapContents& c : report.inputs) sum += c;
-  if (!(report.merged == sum))
-    throw Error(fmt::format("merging lost content ({} submaps, {} observations in; {} and {} out)", sum.submaps,
-                            sum.observations, report.merged.submaps, report.merged.observations));
+  // Nothing may be lost on the way: the merged map holds what the inputs held, count for count,
+  // less what each merge of overlapping submaps combined (a place in both is one voxel now) or
+  // dropped (and reported).
+  MapContents expected;
+  for (const MapContents& c : report.inputs) expected += c;
+  for (const SubmapAbsorption& a : report.absorbed) {
+    --expected.submaps;
+    expected.occupied_voxels -= static_cast<std::size_t>(a.occupied_voxels_removed);  // wraps back if negative
+    expected.semantic_voxels -= a.semantic_voxels_removed;
+    expected.observations -= a.observations_dropped_free + a.observations_clipped;
+  }
+  if (!(report.merged == expected))
+    throw Error(fmt::format("merging lost content ({} submaps, {} observations expected; {} and {} out)",
+                            expected.submaps, expected.observations, report.merged.submaps,
+                            report.merged.observations));
   return merged;
 }
 

@@ -2,14 +2,14 @@
 // Merging maps of different sessions into one (`slamvdb merge`): every input's submaps, with new
 // ids in one id space, each still in the session it was mapped in (the sessions renumbered, kept
 // in input order). The inputs must already share one world (`slamvdb align`); submaps of
-// different sessions that cover the same place stay separate submaps for now (the global index
-// reads them together, as it reads overlapping submaps of one drive): merging them where they
-// overlap enough (submap_merge.hpp's rule) is the next step. Knows nothing of files.
+// different sessions that cover the same place are merged where they overlap enough
+// (session_overlap_merge.hpp: the loop closer's rule, every voxel once). Knows nothing of files.
 #include <cstdint>
 #include <string>
 #include <vector>
 
 #include "slamvdb/map/semantic_map.hpp"
+#include "slamvdb/sessions/session_overlap_merge.hpp"
 
 namespace slamvdb::sessions {
 
@@ -33,14 +33,17 @@ MapContents map_contents(const SemanticMap& map);
 struct MapMergeReport {
   std::vector<MapContents> inputs;
   MapContents merged;
+  std::vector<SubmapAbsorption> absorbed;  // the merges of overlapping submaps, in order (merged ids)
 };
 
 // Moves every submap of `inputs` (left empty) into one map with the first input's parameters and
 // info, its sessions those of all inputs (an input that lists none contributes one session named
-// labels[i]). Throws Error naming labels[i] and the difference for an input that cannot be merged
-// (merge_incompatibility), for fewer than two inputs, or when the merged map does not hold the
-// inputs' contents count for count (report.merged == sum of report.inputs). Deterministic.
+// labels[i]); then merges overlapping submaps of different sessions (`overlap`). Throws Error
+// naming labels[i] and the difference for an input that cannot be merged (merge_incompatibility),
+// for fewer than two inputs, or when the merged map does not hold the inputs' contents count for
+// count (report.merged == the sum of report.inputs less what report.absorbed combined or
+// dropped). Deterministic.
 SemanticMap merge_session_maps(std::vector<SemanticMap>& inputs, const std::vector<std::string>& labels,
-                               MapMergeReport& report);
+                               MapMergeReport& report, const OverlapMergeOptions& overlap = {});
 
 }  // namespace slamvdb::sessions

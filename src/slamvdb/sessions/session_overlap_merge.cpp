@@ -1,0 +1,74 @@
+#include "slamvdb/sessions/session_overlap_merge.hpp"
+
+#include <Eigen/Geometry>
+
+#include "slamvdb/map/submap_merge.hpp"
+
+namespace slamvdb::sessions {
+namespace {
+
+// The world box around a submap's occupied voxels (their centres, grown by a voxel): two submaps
+// whose boxes are apart cannot overlap, so most pairs of a long drive cost one box test.
+Eigen::AlignedBox3d overlap_merge_world_box(const SubmapInfo& info, const VoxelMap& voxels) {
+  Eigen::AlignedBox3d box;
+  const double voxel = voxels.voxel_size();
+  voxels.occupancy().for_each_occupied(
+      [&](const VoxelKey& k, float) { box.extend(info.T_world_submap * center_of_key(k, voxel)); });
+  if (!box.isEmpty()) box.min().array() -= voxel, box.max().array() += voxel;
+  return box;
+}
+
+uint64_t overlap_merge_observations(const VoxelMap& voxels) {
+  uint64_t n = 0;
+  const SemanticLayer& layer = voxels.semantics();
+  layer.for_each([&](SemanticLayer::Handle h) { n += layer.count_of(h); });
+  return n;
+}
+
+}  // namespace
+
+std::vector<SubmapAbsorption> merge_overlapping_sessions(std::vector<std::pair<SubmapInfo, VoxelMap>>& submaps,
+                                                         const OverlapMergeOptions& options) {
+  std::vector<SubmapAbsorption> out;
+  if (!options.enabled) return out;
+  std::vector<Eigen::AlignedBox3d> boxes;
+  for (const auto& [info, voxels] : submaps) boxes.push_back(overlap_merge_world_box(info, voxels));
+  std::vector<bool> absorbed(submaps.size(), false);
+  for (std::size_t s = 0; s < submaps.size(); ++s) {
+    const auto& [source_info, source] = submaps[s];
+    std::size_t best = s;
+    double best_overlap = -1;
+    for (std::size_t t = 0; t < s; ++t) {
+      const SubmapInfo& target_info = submaps[t].first;
+      if (absorbed[t] || target_info.session == source_info.session || !boxes[t].intersects(boxes[s])) continue;
+      const Pose T_target_source = target_info.T_world_submap.inverse() * source_info.T_world_submap;
+      const double overlap = occupied_overlap(submaps[t].second, source, T_target_source);
+      if (overlap >= options.min_overlap && overlap > best_overlap) best = t, best_overlap = overlap;
+    }
+    if (best == s) continue;
+    auto& [target_info, target] = submaps[best];
+    SubmapAbsorption a{.target_id = target_info.id,
+                       .source_id = source_info.id,
+                       .target_session = target_info.session,
+                       .source_session = source_info.session,
+                       .overlap = best_overlap,
+                       .observations_moved = overlap_merge_observations(source)};
+    const auto occupied_before =
+        static_cast<int64_t>(target.occupancy().num_occupied_voxels() + source.occupancy().num_occupied_voxels());
+    const MergeReport r = merge_into(target, source, target_info.T_world_submap.inverse() * source_info.T_world_submap);
+    a.observations_dropped_free = r.counts_dropped_free;
+    a.observations_clipped = r.counts_before - r.counts_after - r.counts_dropped_free;
+    a.semantic_voxels_removed = r.semantic_entries_before - r.semantic_entries_after;
+    a.occupied_voxels_removed = occupied_before - static_cast<int64_t>(target.occupancy().num_occupied_voxels());
+    boxes[best].extend(boxes[s]);
+    absorbed[s] = true;
+    out.push_back(a);
+  }
+  std::size_t kept = 0;
+  for (std::size_t i = 0; i < submaps.size(); ++i)
+    if (!absorbed[i] && kept++ != i) submaps[kept - 1] = std::move(submaps[i]);  // never onto itself
+  submaps.erase(submaps.begin() + static_cast<std::ptrdiff_t>(kept), submaps.end());
+  return out;
+}
+
+}  // namespace slamvdb::sessions
