@@ -147,7 +147,8 @@ void MapServer::Impl::add_routes() {
   const std::vector<Route> routes = {
       {"/healthz", "GET", kAlways,
        [this](const httplib::Request&, httplib::Response& res) {
-         send_json(res, 200, {{"status", "ok"}, {"semantic_cells", map->semantic_cells()}, {"encoder", encoder_json(context)}});
+         send_json(res, 200, {{"status", "ok"}, {"semantic_cells", map->semantic_cells()}, {"encoder", encoder_json(context)},
+                              {"index", map->index_state()}});
        }},
       {"/metrics", "GET", kAlways,
        [this](const httplib::Request&, httplib::Response& res) {
