@@ -128,6 +128,7 @@ void BM_ServeLoad(benchmark::State& state) {
   options.port = 0;
   options.limits.max_concurrent = static_cast<std::size_t>(clients);
   options.limits.max_body_bytes = 16 << 20;
+  options.limits.rate_per_client = 0;  // every client is 127.0.0.1 here
   options.model_check = ModelIdCheck::kIgnore;
   MapServer server(serve_bench_service(), nullptr, std::nullopt, options);
   const int port = server.bind();
