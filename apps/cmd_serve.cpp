@@ -181,9 +181,18 @@ void add(CLI::App& root) {
                   "Requests answered at once; more get 503 + Retry-After at once (/healthz and /metrics always answer)")
       ->capture_default_str()
       ->check(integer_range(1, 4096));
+  cmd->add_option("--rate-limit", opt->limits.rate_per_client,
+                  "Requests per second per client address; more get 429 + Retry-After (/healthz and /metrics are not "
+                  "counted); 0: no limit")
+      ->capture_default_str()
+      ->check(finite_range(0.0, 1e6));
+  cmd->add_option("--rate-burst", opt->limits.rate_burst, "Requests a client address may send at once (with --rate-limit)")
+      ->capture_default_str()
+      ->check(finite_range(1.0, 1e6));
   cmd->add_option("--ann-min-cells", opt->ann_min_cells,
                   "Maps with at least this many semantic voxels get an approximate nearest-neighbour index for top-k "
-                  "queries, built at start (answers say \"exact\": false; a request may ask \"exact\": true); 0: always")
+                  "queries, built in the background after start (queries are exact until it is ready; answers say "
+                  "\"exact\": false; a request may ask \"exact\": true); 0: always")
       ->capture_default_str()
       ->check(integer_range(0, 1'000'000'000));
   add_option_checks(cmd, [opt] {

@@ -9,13 +9,14 @@
 #include <Eigen/Core>
 
 #include <algorithm>
-#include <bit>
+#include <climits>
 #include <chrono>
 #include <cmath>
 #include <cstdint>
 
 #include "slamvdb/core/embedding_kernels.hpp"
 #include "slamvdb/core/error.hpp"
+#include "slamvdb/query/ann_index_codes.hpp"
 
 namespace slamvdb {
 namespace ann_index_detail {
@@ -44,19 +45,25 @@ std::size_t default_lists(std::size_t cells) {
 
 struct AnnIndex::Impl {
   std::size_t dim = 0;
-  std::unique_ptr<faiss::IndexFlatIP> centroids;  // for the build's batched assignment
-  Eigen::MatrixXf centroid_rows;                  // lists x dim: a question's similarities, without OpenMP
-  std::vector<std::vector<uint32_t>> lists;  // cell positions of each list, ascending
+  Eigen::MatrixXf centroid_rows;     // lists x dim: a question's list similarities, without OpenMP
+  ann_codes::Sq8Codebook codebook;
+  std::vector<std::size_t> list_begin;  // list l's cells: [list_begin[l], list_begin[l + 1])
+  std::vector<uint32_t> positions;      // cell positions list by list, ascending within a list
+  std::vector<uint8_t> codes;           // their codes, codebook.stride() bytes each, in the same order
   std::size_t index_size = 0;
+  std::size_t rerank_factor = 4, rerank_min = 256;
   AnnIndexStats stats;
 };
 
 AnnIndex::AnnIndex(const SemanticMap& map, const AnnOptions& options) : impl_(std::make_unique<Impl>()) {
   using namespace ann_index_detail;
-  const auto start = std::chrono::steady_clock::now();
+  using Clock = std::chrono::steady_clock;
+  const auto start = Clock::now();
   const auto dim = static_cast<std::size_t>(map.params().semantic.dim);
   Impl& m = *impl_;
   m.dim = dim;
+  m.rerank_factor = std::max<std::size_t>(options.rerank_factor, 1);
+  m.rerank_min = options.rerank_min;
   map.read_index([&](const GlobalIndex& index) {
     const std::size_t n = index.size();
     if (index.size() > UINT32_MAX) throw Error("the ANN index holds at most 2^32 cells");
@@ -72,8 +79,11 @@ AnnIndex::AnnIndex(const SemanticMap& map, const AnnOptions& options) : impl_(st
           valid[j] = unit_embedding_of(index, positions[j], batch.data() + j * dim, dim) ? 1 : 0;
       });
     };
-    // k-means on an evenly spaced sample (deterministic: the same map gives the same index).
-    const std::size_t sample_target = std::min(std::max<std::size_t>(options.training_cells, 1), n);
+    // k-means on an evenly spaced sample (deterministic: the same map gives the same index); the
+    // codebook's ranges come from the same sample.
+    const std::size_t wanted_lists = options.lists ? options.lists : default_lists(n);
+    const std::size_t sample_wanted = options.training_cells ? options.training_cells : 64 * wanted_lists;
+    const std::size_t sample_target = std::min(std::max<std::size_t>(sample_wanted, 1), n);
     std::vector<std::size_t> positions;
     for (std::size_t s = 0; s < sample_target; ++s) positions.push_back(s * n / sample_target);
     decode_batch(positions);
@@ -82,8 +92,10 @@ AnnIndex::AnnIndex(const SemanticMap& map, const AnnOptions& options) : impl_(st
       if (valid[j]) training.insert(training.end(), batch.begin() + static_cast<std::ptrdiff_t>(j * dim),
                                     batch.begin() + static_cast<std::ptrdiff_t>((j + 1) * dim));
     const std::size_t sample = training.size() / dim;
+    if (options.stop && *options.stop) throw Error("the ANN index build was stopped");
     if (sample == 0) throw Error("the map has no semantic cell with a non-zero embedding to index");
-    const std::size_t lists = std::min(options.lists ? options.lists : default_lists(n), sample);
+    const std::size_t lists = std::min(wanted_lists, sample);
+    m.codebook = ann_codes::Sq8Codebook(training.data(), sample, dim);
     faiss::ClusteringParameters params;
     params.niter = options.iterations;
     params.spherical = true;  // centroids on the unit sphere: inner product is cosine
@@ -91,43 +103,65 @@ AnnIndex::AnnIndex(const SemanticMap& map, const AnnOptions& options) : impl_(st
     params.max_points_per_centroid = static_cast<int>(sample / lists + 1);
     params.min_points_per_centroid = 1;
     faiss::Clustering clustering(static_cast<int>(dim), lists, params);
-    m.centroids = std::make_unique<faiss::IndexFlatIP>(static_cast<ann_index_detail::FaissId>(dim));
-    clustering.train(static_cast<ann_index_detail::FaissId>(sample), training.data(), *m.centroids);
+    faiss::IndexFlatIP centroids(static_cast<FaissId>(dim));  // also the build's batched assignment
+    const auto training_start = Clock::now();
+    clustering.train(static_cast<FaissId>(sample), training.data(), centroids);
+    m.stats.training_seconds = std::chrono::duration<double>(Clock::now() - training_start).count();
     training = {};
     m.centroid_rows = Eigen::Map<const Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>(
-        m.centroids->get_xb(), static_cast<Eigen::Index>(lists), static_cast<Eigen::Index>(dim));
-    // Each cell into the list of its most similar centroid (faiss batches this with BLAS).
+        centroids.get_xb(), static_cast<Eigen::Index>(lists), static_cast<Eigen::Index>(dim));
+    // Each cell into the list of its most similar centroid (faiss batches this with BLAS), its code
+    // written in cell order first, then moved list by list.
+    const std::size_t stride = m.codebook.stride();
+    std::vector<uint8_t> cell_codes(n * stride);
+    std::vector<int32_t> cell_list(n, -1);
     std::vector<float> distance;
-    std::vector<ann_index_detail::FaissId> label;
-    m.lists.assign(lists, {});
+    std::vector<FaissId> label;
     constexpr std::size_t kBatch = 16384;
     for (std::size_t b = 0; b < n; b += kBatch) {
+      if (options.stop && *options.stop) throw Error("the ANN index build was stopped");
       const std::size_t k = std::min(kBatch, n - b);
       positions.resize(k);
       for (std::size_t j = 0; j < k; ++j) positions[j] = b + j;
       decode_batch(positions);
       distance.resize(k);
       label.resize(k);
-      m.centroids->search(static_cast<ann_index_detail::FaissId>(k), batch.data(), 1, distance.data(), label.data());
-      for (std::size_t j = 0; j < k; ++j) {
-        if (!valid[j] || label[j] < 0) continue;
-        m.lists[static_cast<std::size_t>(label[j])].push_back(static_cast<uint32_t>(b + j));
-        ++m.stats.cells;
-      }
+      centroids.search(static_cast<FaissId>(k), batch.data(), 1, distance.data(), label.data());
+      tbb::parallel_for(tbb::blocked_range<std::size_t>(0, k, 1024), [&](const auto& range) {
+        for (std::size_t j = range.begin(); j != range.end(); ++j) {
+          if (!valid[j] || label[j] < 0) continue;
+          cell_list[b + j] = static_cast<int32_t>(label[j]);
+          m.codebook.encode(batch.data() + j * dim, cell_codes.data() + (b + j) * stride);
+        }
+      });
     }
+    m.list_begin.assign(lists + 1, 0);
+    for (const int32_t l : cell_list)
+      if (l >= 0) ++m.list_begin[static_cast<std::size_t>(l) + 1];
+    for (std::size_t l = 0; l < lists; ++l) m.list_begin[l + 1] += m.list_begin[l];
+    const std::size_t cells = m.list_begin[lists];
+    m.positions.resize(cells);
+    m.codes.resize(cells * stride);
+    std::vector<std::size_t> next(m.list_begin.begin(), m.list_begin.end() - 1);
+    for (std::size_t i = 0; i < n; ++i) {
+      if (cell_list[i] < 0) continue;
+      const std::size_t at = next[static_cast<std::size_t>(cell_list[i])]++;
+      m.positions[at] = static_cast<uint32_t>(i);
+      std::copy_n(cell_codes.data() + i * stride, stride, m.codes.data() + at * stride);
+    }
+    m.stats.cells = cells;
     m.stats.lists = lists;
   });
-  m.centroids.reset();  // faiss's copy; its OpenMP search is not wanted on request threads
   m.stats.probes = options.probes ? std::min(options.probes, m.stats.lists) : std::max<std::size_t>(1, m.stats.lists / 8);
-  m.stats.memory_bytes = m.stats.lists * dim * sizeof(float) + m.stats.cells * sizeof(uint32_t) +
-                         m.stats.lists * sizeof(std::vector<uint32_t>);
-  m.stats.build_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  m.stats.memory_bytes = m.stats.lists * dim * sizeof(float) + m.positions.size() * sizeof(uint32_t) +
+                         m.codes.size() + m.list_begin.size() * sizeof(std::size_t) + dim * 2 * sizeof(float);
+  m.stats.build_seconds = std::chrono::duration<double>(Clock::now() - start).count();
 }
 
 AnnIndex::~AnnIndex() = default;
 
 std::vector<std::size_t> AnnIndex::candidates(std::span<const float> unit_query, std::size_t probes,
-                                              std::size_t min_cells) const {
+                                              std::size_t top_k, std::size_t* scanned) const {
   const Impl& m = *impl_;
   if (unit_query.size() != m.dim)
     throw Error(fmt::format("the ANN index is {}-d, the query {}-d", m.dim, unit_query.size()));
@@ -142,20 +176,46 @@ std::vector<std::size_t> AnnIndex::candidates(std::span<const float> unit_query,
     return similarity[a] != similarity[b] ? similarity[a] > similarity[b] : a < b;
   });
   const std::size_t wanted = std::min(probes ? probes : m.stats.probes, lists);
-  // The lists' cells marked in a bitmap and given back in ascending position: read in the order the
-  // global index holds them, a cell's record and embedding are far more often in cache or in an
-  // open memory page than in list order (which jumps across the whole map for every cell).
-  std::vector<uint64_t> marked((m.index_size + 63) / 64, 0);
+  const std::size_t keep = std::max({m.rerank_factor * top_k, m.rerank_min, std::size_t{1}});
+  // The probed lists' codes stream from memory; the best `keep` by approximate score are kept in a
+  // buffer of twice that, cut back to `keep` whenever full (the cut's score bars later cells).
+  const std::vector<int16_t> weights = m.codebook.weights(unit_query.data());
+  const std::size_t stride = m.codebook.stride();
+  struct Kept {
+    int32_t score;
+    uint32_t position;
+  };
+  const auto ahead = [](const Kept& a, const Kept& b) { return a.score != b.score ? a.score > b.score : a.position < b.position; };
+  std::vector<Kept> best;
+  best.reserve(2 * keep);
+  int32_t bar = INT32_MIN;
+  const auto cut = [&] {
+    std::nth_element(best.begin(), best.begin() + static_cast<std::ptrdiff_t>(keep - 1), best.end(), ahead);
+    best.resize(keep);
+    bar = best[keep - 1].score;
+  };
+  constexpr std::size_t kChunk = 512;
+  int32_t scores[kChunk];
   std::size_t count = 0;
-  for (std::size_t r = 0; r < lists && (r < wanted || count < min_cells); ++r) {
-    for (const uint32_t i : m.lists[order[r]]) marked[i >> 6] |= uint64_t{1} << (i & 63);
-    count += m.lists[order[r]].size();
+  for (std::size_t r = 0; r < lists && (r < wanted || count < top_k); ++r) {
+    const std::size_t begin = m.list_begin[order[r]], end = m.list_begin[order[r] + 1];
+    count += end - begin;
+    for (std::size_t c = begin; c < end; c += kChunk) {
+      const std::size_t k = std::min(kChunk, end - c);
+      ann_codes::score_codes(m.codes.data() + c * stride, k, stride, weights.data(), scores);
+      for (std::size_t j = 0; j < k; ++j) {
+        if (scores[j] < bar) continue;
+        best.push_back({scores[j], m.positions[c + j]});
+        if (best.size() == 2 * keep) cut();
+      }
+    }
   }
+  if (best.size() > keep) cut();
+  if (scanned) *scanned = count;
   std::vector<std::size_t> out;
-  out.reserve(count);
-  for (std::size_t w = 0; w < marked.size(); ++w)
-    for (uint64_t bits = marked[w]; bits; bits &= bits - 1)
-      out.push_back(w * 64 + static_cast<std::size_t>(std::countr_zero(bits)));
+  out.reserve(best.size());
+  for (const Kept& k : best) out.push_back(k.position);
+  std::sort(out.begin(), out.end());
   return out;
 }
 

@@ -1,13 +1,15 @@
 #pragma once
 // An approximate nearest-neighbour index over a map's semantic cells, for top-k questions that
 // exact scoring cannot answer fast enough (issue 21, "Speed": `slamvdb serve` with many clients).
-// An inverted file: faiss's spherical k-means groups the cells' unit embeddings into lists; a
-// question looks only at the cells of the lists whose centroids are most similar to it, and
-// similarity_search scores those cells exactly, from the map's own storage (no second copy of
-// the embeddings: the index holds the centroids and one 4-byte cell position per cell). Answers
-// are therefore exact scores of a subset of the cells; what can be missed is a cell of a list not
-// looked at (recall, measured in ann_index_test.cpp and docs/serve-design.md).
+// An inverted file: faiss's spherical k-means groups the cells' unit embeddings into lists, and each
+// list keeps its cells' positions and compact codes (one byte per dimension, ann_index_codes.hpp)
+// contiguously. A question streams the codes of the lists whose centroids are most similar to it,
+// keeps the best few cells by approximate score, and similarity_search scores those exactly from
+// the map's own storage. Answers are therefore exact scores of a subset of the cells; what can be
+// missed is a cell of a list not looked at, or one the codes ranked below the re-scored few (recall,
+// measured in ann_index_test.cpp and docs/serve-design.md).
 // faiss is a PRIVATE dependency of the query part: nothing of it shows here.
+#include <atomic>
 #include <cstddef>
 #include <memory>
 #include <span>
@@ -20,8 +22,14 @@ namespace slamvdb {
 struct AnnOptions {
   std::size_t lists = 0;              // k-means clusters; 0: about sqrt(cells) / 4, in 8..1024
   std::size_t probes = 0;             // lists looked at per question; 0: an eighth of the lists
-  std::size_t training_cells = 65536; // the k-means sample (evenly spaced cells)
+  std::size_t training_cells = 0;     // the k-means sample (evenly spaced cells); 0: 64 per list
   int iterations = 12;                // k-means iterations
+  // Cells re-scored exactly per question: the best rerank_factor * top_k (at least rerank_min) by
+  // approximate score of the probed lists' codes.
+  std::size_t rerank_factor = 4;
+  std::size_t rerank_min = 256;
+  // Set by another thread to stop a build early (the constructor then throws Error). Null: never.
+  const std::atomic<bool>* stop = nullptr;
 };
 
 struct AnnIndexStats {
@@ -29,7 +37,8 @@ struct AnnIndexStats {
   std::size_t lists = 0;
   std::size_t probes = 0;        // default lists looked at per question
   double build_seconds = 0;
-  std::size_t memory_bytes = 0;  // centroids + cell positions
+  double training_seconds = 0;   // the k-means part of build_seconds
+  std::size_t memory_bytes = 0;  // centroids + cell positions + codes
 };
 
 class AnnIndex {
@@ -42,11 +51,12 @@ class AnnIndex {
   AnnIndex(const AnnIndex&) = delete;
   AnnIndex& operator=(const AnnIndex&) = delete;
 
-  // The global-index positions of the cells to score for `unit_query` (dim floats, norm 1): the
-  // cells of the `probes` (0: the default) most similar lists, more lists while they hold fewer
-  // than `min_cells` cells. In ascending position (the order the global index holds them).
-  std::vector<std::size_t> candidates(std::span<const float> unit_query, std::size_t probes,
-                                      std::size_t min_cells) const;
+  // The global-index positions of the cells to score exactly for the best `top_k` of `unit_query`
+  // (dim floats, norm 1): of the cells of the `probes` (0: the default) most similar lists (more
+  // lists while they hold fewer than `top_k` cells), the re-rank count best by their codes. In
+  // ascending position (the order the global index holds them). `scanned`: codes scored.
+  std::vector<std::size_t> candidates(std::span<const float> unit_query, std::size_t probes, std::size_t top_k,
+                                      std::size_t* scanned = nullptr) const;
   // Cells of the global index the index was built over (its size then).
   std::size_t index_size() const;
   AnnIndexStats stats() const;

@@ -15,6 +15,7 @@
 #include <limits>
 #include <thread>
 
+#include "slamvdb/server/client_rate_limit.hpp"
 #include "slamvdb/server/httplib_include.hpp"
 #include "slamvdb/server/nav_grid_answer.hpp"
 #include "slamvdb/server/points_answer.hpp"
@@ -46,10 +47,19 @@ using JsonRoute = std::function<void(const httplib::Request&, httplib::Response&
 // ours (500 with a generic message, logged, never a stack trace to the client), and every answer
 // counted under the route's pattern.
 httplib::Server::Handler guarded(ServerMetrics& metrics, std::string route, std::size_t max_in_flight,
-                                 JsonRoute handler) {
-  return [&metrics, route = std::move(route), max_in_flight, handler = std::move(handler)](const httplib::Request& req,
-                                                                                          httplib::Response& res) {
+                                 JsonRoute handler, ClientRateLimit* rate = nullptr) {
+  return [&metrics, route = std::move(route), max_in_flight, handler = std::move(handler), rate](const httplib::Request& req,
+                                                                                                httplib::Response& res) {
     const auto start = std::chrono::steady_clock::now();
+    // A client over its rate (client_rate_limit.hpp) is refused before it counts as in flight.
+    if (const auto over = rate ? rate->admit(req.remote_addr) : ClientRateLimit::Decision{}; !over.admitted) {
+      res.set_header("Retry-After", std::to_string(over.retry_after_seconds));
+      send_error(res, 429, fmt::format("too many requests from {}: at most {:g} per second, {:g} at once "
+                                       "(--rate-limit, --rate-burst); try again in {} s",
+                                       req.remote_addr, rate->per_second(), rate->burst(), over.retry_after_seconds));
+      metrics.record(route, res.status, 0.0);
+      return;
+    }
     {
       const ServerMetrics::InFlight in_flight(metrics);
       if (in_flight.count > max_in_flight) {
@@ -115,6 +125,7 @@ struct MapServer::Impl {
   int listen_socket = -1;  // the socket httplib listens on (see add_routes)
   std::atomic<bool> stopping{false}, running{false};  // see MapServer::stop
   std::unique_ptr<MapEventStreams> events;  // GET /api/events (web_events.hpp)
+  std::unique_ptr<ClientRateLimit> rate;  // per client address; null: no rate limit
 
   void add_routes();
   std::string metrics_text() const;
@@ -142,6 +153,8 @@ void MapServer::Impl::add_routes() {
   constexpr std::size_t kAlways = std::numeric_limits<std::size_t>::max();  // monitoring: never refused
   const std::size_t limit = options.limits.max_concurrent;
   events = std::make_unique<MapEventStreams>(*map, stopping);
+  if (options.limits.rate_per_client > 0)
+    rate = std::make_unique<ClientRateLimit>(options.limits.rate_per_client, options.limits.rate_burst);
   // Every route with its one method; the other methods on a known path answer 405 (httplib alone
   // would say 404, which tells a client the path is wrong when the method is).
   struct Route {
@@ -152,7 +165,8 @@ void MapServer::Impl::add_routes() {
   const std::vector<Route> routes = {
       {"/healthz", "GET", kAlways,
        [this](const httplib::Request&, httplib::Response& res) {
-         send_json(res, 200, {{"status", "ok"}, {"semantic_cells", map->semantic_cells()}, {"encoder", encoder_json(context)}});
+         send_json(res, 200, {{"status", "ok"}, {"semantic_cells", map->semantic_cells()}, {"encoder", encoder_json(context)},
+                              {"index", map->index_state()}});
        }},
       {"/metrics", "GET", kAlways,
        [this](const httplib::Request&, httplib::Response& res) {
@@ -220,7 +234,8 @@ void MapServer::Impl::add_routes() {
     };
     const auto handler_for = [&](const std::string& method) {
       return guarded(metrics, r.path, method == r.method ? r.max_in_flight : kAlways,
-                     method == r.method ? r.handler : refuse);
+                     method == r.method ? r.handler : refuse,
+                     method == r.method && r.max_in_flight != kAlways ? rate.get() : nullptr);
     };
     http->Get(r.path, handler_for("GET"));
     http->Post(r.path, handler_for("POST"));

@@ -3,8 +3,15 @@
 // later the map a running `map --serve` builds); `serve --db URL` (fleet map, a later issue) will
 // put a database-backed map behind the same interface, so the routes never touch a SemanticMap.
 // Every call may come from several request threads at once: implementations are thread-safe.
+#include <atomic>
+#include <chrono>
+#include <condition_variable>
 #include <filesystem>
+#include <functional>
 #include <memory>
+#include <mutex>
+#include <string>
+#include <thread>
 #include <nlohmann/json.hpp>
 #include <span>
 #include <vector>
@@ -62,19 +69,33 @@ class MapService {
   // A counter that grows whenever the map changes (a submap finished, moved or merged): GET
   // /api/events tells viewers. A saved map never changes: 0.
   virtual std::uint64_t changes() const { return 0; }
+  // The ANN index of top-k questions (GET /healthz "index"): "none", "building" (questions are
+  // scored exactly meanwhile), "ready" or "failed" (exact, the reason logged).
+  virtual std::string index_state() const { return "none"; }
 };
 
 // A SemanticMap in memory, read through its global index (SemanticMap's own locks make concurrent
 // readers safe, also while a mapper writes to it).
 class SemanticMapService final : public MapService {
  public:
-  // `ann`: the map's ANN index (null: every search is exact).
+  // `ann`: the map's ANN index (null: every search is exact, until build_index_in_background).
   SemanticMapService(std::shared_ptr<const SemanticMap> map, nlohmann::json info, std::unique_ptr<AnnIndex> ann = nullptr);
+  ~SemanticMapService() override;  // asks a build still running to stop, and waits for it
+  SemanticMapService(const SemanticMapService&) = delete;
+  SemanticMapService& operator=(const SemanticMapService&) = delete;
+  // Builds the ANN index on a thread of its own with `build` (given a flag that asks it to stop
+  // early, by throwing): the service answers at once, every search exact, and switches to the index
+  // when it is ready; a build that throws leaves the service exact (state "failed", logged). Once.
+  using IndexBuilder = std::function<std::unique_ptr<AnnIndex>(const SemanticMap&, const std::atomic<bool>& stop)>;
+  void build_index_in_background(IndexBuilder build);
+  // Waits until no build is running (true) or `timeout` has passed (false).
+  bool wait_for_index(std::chrono::milliseconds timeout) const;
+  std::string index_state() const override;
   QuerySpace space() const override;
   std::size_t semantic_cells() const override;
   nlohmann::json info() const override { return info_; }
   SearchAnswer search(std::span<const float> query, const SearchOptions& options, bool exact) const override;
-  const AnnIndex* ann() const { return ann_.get(); }
+  std::shared_ptr<const AnnIndex> ann() const;
   void classify(const QuerySet& queries, std::span<ScoredCell> results, const ClassifyOptions& options,
                 ModelIdCheck model_check) const override;
   std::vector<PointQuery> at(std::span<const Vec3d> points_world, const QuerySet* queries,
@@ -90,12 +111,17 @@ class SemanticMapService final : public MapService {
  private:
   std::shared_ptr<const SemanticMap> map_;
   nlohmann::json info_;
-  std::unique_ptr<const AnnIndex> ann_;
+  mutable std::mutex ann_mutex_;  // guards ann_ and state_; a search copies the pointer and lets go
+  mutable std::condition_variable ann_built_;
+  std::shared_ptr<const AnnIndex> ann_;
+  std::string state_ = "none";
+  std::atomic<bool> stop_build_{false};
+  std::thread builder_;
 };
 
 // A saved map, loaded once and checked in full; its info is `info --json --check` of the file.
-// With `ann`, an ANN index is built over it with those options (its figures are logged) when it
-// has at least `ann_min_cells` semantic cells.
+// With `ann`, an ANN index is built over it with those options in the background (its figures are
+// logged when it is ready) when it has at least `ann_min_cells` semantic cells.
 std::shared_ptr<SemanticMapService> open_map_file_service(const std::filesystem::path& path,
                                                           const AnnOptions* ann = nullptr, std::size_t ann_min_cells = 0);
 

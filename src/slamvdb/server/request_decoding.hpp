@@ -29,6 +29,10 @@ struct ServerLimits {
   // Cells one GET /api/classes answers (about 120 bytes of JSON each: 200 000 is ~25 MB); a region
   // holding more is refused with 413 naming the count and this limit (split the region instead).
   std::size_t max_cells = 200000;
+  // Requests per second per client address (a token bucket holding `rate_burst`); more are refused
+  // with 429 + Retry-After before any work (/healthz and /metrics are not counted). 0: no limit.
+  double rate_per_client = 100;
+  double rate_burst = 200;
 };
 
 // A request the server refuses: HTTP status, the request field at fault ("" for the request as a

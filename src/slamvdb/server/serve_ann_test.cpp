@@ -4,7 +4,9 @@
 // equal the CLI's rows; without the option a small map gets no index at all.
 #include <gtest/gtest.h>
 
+#include <chrono>
 #include <map>
+#include <thread>
 #include <nlohmann/json.hpp>
 
 #include "slamvdb/testing/served_map.hpp"
@@ -30,8 +32,19 @@ TEST(ServeAnn, TopKGoesThroughTheIndexWithExactScoresAndExactTrueEqualsTheCli) {
                         "--ann-min-cells", "0"},
                        (f.tmp.path / "serve.log").string());
   ASSERT_GT(server.port(), 0) << server.output();
-  EXPECT_NE(server.output().find("ANN index: "), std::string::npos) << server.output();  // spdlog: stdout
   httplib::Client client("127.0.0.1", server.port());
+  // The index is built in the background (GET /healthz says "building" meanwhile; a question is
+  // then scored exactly, see map_service_index_test.cpp): wait until it is ready.
+  std::string state;
+  for (int i = 0; i < 600 && state != "ready"; ++i) {
+    const auto health = client.Get("/healthz");
+    ASSERT_TRUE(health && health->status == 200);
+    state = nlohmann::json::parse(health->body).at("index").get<std::string>();
+    ASSERT_TRUE(state == "building" || state == "ready") << state;
+    if (state != "ready") std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  }
+  ASSERT_EQ(state, "ready") << server.output();
+  EXPECT_NE(server.output().find("ANN index: building"), std::string::npos) << server.output();  // spdlog: stdout
 
   // Every cell's exact score (a threshold question never uses the index).
   const nlohmann::json every = serve_ann_post(client, {{"text", "grass"}, {"top_k", 0}, {"threshold", -1}});
@@ -84,6 +97,9 @@ TEST(ServeAnn, ASmallMapGetsNoIndexByDefault) {
   httplib::Client client("127.0.0.1", server.port());
   EXPECT_TRUE(serve_ann_post(client, {{"text", "grass"}, {"top_k", 7}}).at("exact").get<bool>());
   EXPECT_EQ(server.output().find("ANN index: "), std::string::npos) << server.output();
+  const auto health = client.Get("/healthz");
+  ASSERT_TRUE(health);
+  EXPECT_EQ(nlohmann::json::parse(health->body).at("index"), "none");
   EXPECT_EQ(server.stop(SIGTERM), 0);
 }
 
