@@ -1,6 +1,6 @@
 // The CLI commands that run the TorchScript test networks: embed-text, segment, map --features model,
 // train-queries.
-#include "slamvdb/inference/torch_encoders_fixture.hpp"
+#include "slamvdb/testing/torch_encoders_fixture.hpp"
 
 namespace slamvdb::torch_test {
 namespace {

@@ -1,6 +1,6 @@
 // The TorchScript backend against Python: the C++ encoders must reproduce the reference outputs that
 // tools/make_test_models.py computes in Python (pre-processing included). Also every failure mode.
-#include "slamvdb/inference/torch_encoders_fixture.hpp"
+#include "slamvdb/testing/torch_encoders_fixture.hpp"
 
 namespace slamvdb::torch_test {
 namespace {
