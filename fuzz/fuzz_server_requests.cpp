@@ -1,9 +1,11 @@
 // The server's request decoding (server/request_decoding.hpp). An input starting with '?' is the
-// query string of GET /api/classes and GET /api/nav-grid (name=value pairs split on '&', as the
+// query string of GET /api/classes, /api/nav-grid and /api/points (name=value pairs split on '&', as the
 // HTTP layer hands them over): decode_region_params, decode_classes_request and
 // decode_nav_grid_request either refuse it with RequestError or give a region that is a finite
 // box (min <= max) and/or a ball or cylinder of finite positive radius, a confidence in 0..1, a
-// robot height in 0.1..100 and a positive finite resolution. Anything else is a POST /api/query
+// robot height in 0.1..100 and a positive finite resolution; decode_points_request (GET
+// /api/points) a lod in 0..kPointsMaxLod, a limit in 1..kPointsMaxLimit and a query text of
+// 1..max_text_bytes bytes, with a region only when one was asked. Anything else is a POST /api/query
 // body for a 4-d map: decoded or refused; a decoded one must hold what the limits promise: at most
 // max_terms terms, texts within max_text_bytes, vectors of the map's dimension with finite values,
 // top_k within 1..max_top_k.
@@ -13,6 +15,7 @@
 #include <string_view>
 
 #include "slamvdb/core/error.hpp"
+#include "slamvdb/server/points_answer.hpp"
 #include "slamvdb/server/request_decoding.hpp"
 
 namespace {
@@ -29,6 +32,7 @@ bool fuzz_region_ok(const slamvdb::QueryRegion& region) {
 
 void fuzz_get_params(std::string_view query) {
   slamvdb::NavGridParams p;
+  slamvdb::PointsParams points;
   for (std::size_t start = 1; start <= query.size();) {
     const std::size_t end = std::min(query.find('&', start), query.size());
     const std::string_view pair = query.substr(start, end - start);
@@ -42,6 +46,9 @@ void fuzz_get_params(std::string_view query) {
     if (name == "format") p.format = value;
     if (name == "robot_height") p.robot_height = value;
     if (name == "min_confidence") p.min_confidence = value;
+    if (name == "lod") points.lod = value;
+    if (name == "limit") points.limit = value;
+    if (name == "query") points.query = value;
     start = end + 1;
   }
   try {
@@ -58,6 +65,18 @@ void fuzz_get_params(std::string_view query) {
     if (!fuzz_region_ok(g.region) || !(g.min_confidence >= 0 && g.min_confidence <= 1) ||
         !(g.robot_height >= 0.1 && g.robot_height <= 100) ||
         (g.resolution && !(std::isfinite(*g.resolution) && *g.resolution > 0)))
+      std::abort();
+  } catch (const slamvdb::Error&) {
+  }
+  points.region = p.region;
+  slamvdb::ServerLimits limits;
+  limits.max_text_bytes = 64;
+  try {
+    const slamvdb::PointsQuery q = slamvdb::decode_points_request(points, limits);
+    const bool asked_region = points.region.bbox || points.region.near || points.region.radius;
+    if (q.points.region.has_value() != asked_region || (q.points.region && !fuzz_region_ok(*q.points.region)) ||
+        q.points.lod < 0 || q.points.lod > slamvdb::kPointsMaxLod || q.points.limit < 1 ||
+        q.points.limit > slamvdb::kPointsMaxLimit || (q.text && (q.text->empty() || q.text->size() > limits.max_text_bytes)))
       std::abort();
   } catch (const slamvdb::Error&) {
   }

@@ -136,6 +136,7 @@ int main(int argc, char** argv) {
   seed("server_requests", "class", R"({"class": "smooth", "not_class": ["rough"], "threshold": -0.5})");
   seed("server_requests", "classes", "?bbox=-2,-2,-1,2,2,1&min_confidence=0.5");
   seed("server_requests", "nav_grid", "?near=0,0&radius=3&resolution=0.5&format=png&robot_height=1.2&min_confidence=0.1");
+  seed("server_requests", "points", "?bbox=-2,-2,-1,2,2,1&lod=2&limit=5000&query=tall%20grass");
   seed("ontology", "coarse", file_bytes(fs::path(SLAMVDB_SOURCE_DIR) / "data/ontology/rellis3d_coarse.yaml"));
   seed("ontology", "fine", file_bytes(fs::path(SLAMVDB_SOURCE_DIR) / "data/ontology/rellis3d_fine.yaml"));
 
