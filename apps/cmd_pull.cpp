@@ -56,7 +56,9 @@ void add(CLI::App& root) {
     SemanticMap scratch(definition.params, info);  // holds one submap at a time for the writer
     ProgressBar bar("pull", 0, "submaps");
     std::size_t done = 0;
+    info.sessions.clear();  // the fleet's sessions, as the submaps come (assign_pulled_session)
     const fleet::PullReport r = fleet.pull({region->bounds(), opt->sessions}, [&](fleet::PulledSubmap&& s) {
+      fleet::assign_pulled_session(info, s);
       const int id = s.info.id;
       scratch.add_finished_submap(s.info, std::move(s.voxels));
       writer->save_finished(scratch, id);

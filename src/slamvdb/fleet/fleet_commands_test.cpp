@@ -101,6 +101,12 @@ TEST(PullCommand, WritesARegionAsAMapFileThatLoadsAndWritesNothingOnADamagedPayl
   std::size_t monday_occupied = 0;
   monday.read_submap(1, [&](const Submap& s) { monday_occupied = s.voxels().occupancy().num_occupied_voxels(); });
   back.read_submap(0, [&](const Submap& s) { EXPECT_EQ(s.voxels().occupancy().num_occupied_voxels(), monday_occupied); });
+  // The file lists the fleet's sessions, each submap in its own (the pulled file is a normal multi-session map).
+  ASSERT_EQ(back.info().sessions.size(), 2u);
+  EXPECT_EQ(back.info().sessions[0].name, "monday");
+  EXPECT_EQ(back.info().sessions[1].name, "tuesday");
+  EXPECT_EQ(back.submap_info(0)->session, back.info().sessions[0].id);
+  EXPECT_EQ(back.submap_info(1)->session, back.info().sessions[1].id);
 
   const auto one = run_command(pull + " --near 100,50 --radius 3 --session tuesday -o " + quote_path(region) + " 2>&1");
   ASSERT_EQ(one.exit_code, 0) << one.output;

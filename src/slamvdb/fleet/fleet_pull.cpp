@@ -2,7 +2,9 @@
 // submap's rows are read and checked by the map file's own row readers (store/submap_payload.hpp).
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <chrono>
+#include <iterator>
 #include <nlohmann/json.hpp>
 
 #include "slamvdb/core/error.hpp"
@@ -85,8 +87,8 @@ PullReport FleetDatabase::pull(const PullRequest& request, const std::function<v
     const std::string names = text_array(request.sessions);
     const pqxx::result submaps = tx.exec_params(
         "SELECT s.id, s.name, m.submap, m.t_world_submap::text, s.t_fleet_session::text, m.time_begin, m.time_end, "
-        "m.path_length, m.blocks, m.known_voxels, m.occupied_voxels, m.semantic_voxels, m.payload_format, m.shard "
-        "FROM slamvdb.submaps m JOIN slamvdb.sessions s ON s.id = m.session "
+        "m.path_length, m.blocks, m.known_voxels, m.occupied_voxels, m.semantic_voxels, m.payload_format, m.shard, "
+        "s.source, s.robot FROM slamvdb.submaps m JOIN slamvdb.sessions s ON s.id = m.session "
         "WHERE m.shard = ANY($12::integer[]) AND m.footprint && ST_MakeEnvelope($1, $2, $3, $4, 0) "
         "AND m.z_max >= $5 AND m.z_min <= $6 AND ($7 OR s.name = ANY($8::text[])) "
         "AND ($9 OR (m.session, m.submap) IN (SELECT * FROM unnest($10::bigint[], $11::int[]))) "
@@ -130,7 +132,8 @@ PullReport FleetDatabase::pull(const PullRequest& request, const std::function<v
           ++report.rows, report.payload_bytes += keys.size() + counts.size() + embeddings.size() + stats.size();
         }
         PulledSubmap pulled{name, id, summary.info,
-                            VoxelMap(fleet.params, occupancy.finish(summary), semantics.finish(summary))};
+                            VoxelMap(fleet.params, occupancy.finish(summary), semantics.finish(summary)),
+                            row[14].as<std::string>(), row[15].as<std::string>()};
         pulled.info.id = static_cast<int>(report.submaps);  // renumbered: ids of different sessions collide
         sink(std::move(pulled));
       } catch (const Error& e) {
@@ -151,9 +154,26 @@ SemanticMap FleetDatabase::pull_map(const PullRequest& request) {
   const FleetDefinition fleet = definition();
   MapInfo info = fleet.info;
   info.source = fmt::format("fleet map {}", display_url_);
+  info.sessions.clear();
+  std::vector<PulledSubmap> pulled;  // the map is made once its sessions are known
+  pull(request, [&](PulledSubmap&& s) {
+    assign_pulled_session(info, s);
+    pulled.push_back(std::move(s));
+  });
   SemanticMap map(fleet.params, info);
-  pull(request, [&](PulledSubmap&& s) { map.add_finished_submap(s.info, std::move(s.voxels)); });
+  for (PulledSubmap& s : pulled) map.add_finished_submap(s.info, std::move(s.voxels));
   return map;
+}
+
+void assign_pulled_session(MapInfo& info, PulledSubmap& submap) {
+  auto it = std::find_if(info.sessions.begin(), info.sessions.end(),
+                         [&](const SessionInfo& s) { return s.name == submap.session; });
+  if (it == info.sessions.end()) {
+    info.sessions.push_back({static_cast<int>(info.sessions.size()), submap.session, submap.session_source,
+                             submap.session_robot, {}});
+    it = std::prev(info.sessions.end());
+  }
+  submap.info.session = it->id;
 }
 
 }  // namespace slamvdb::fleet

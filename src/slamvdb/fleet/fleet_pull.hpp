@@ -38,7 +38,13 @@ struct PulledSubmap {
   int session_submap_id = 0;
   SubmapInfo info;
   VoxelMap voxels;
+  std::string session_source, session_robot;  // the fleet's sessions row
 };
+
+// Gives a pulled submap its session in the map being built: the fleet's session of that name,
+// added to `info.sessions` (numbered in pull order, with its source and robot) when it is new, so
+// a pulled file lists the fleet's sessions and `--session` on it sees them.
+void assign_pulled_session(MapInfo& info, PulledSubmap& submap);
 
 struct PullReport {
   std::size_t submaps = 0;
