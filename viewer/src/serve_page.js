@@ -5,7 +5,7 @@
 // class with a layer toggle per class, runs a text question (GET /api/points?query=) as a heat map
 // with a colour bar, and shows what the map holds at a clicked point (POST /api/at).
 import * as THREE from 'three';
-import { OrbitControls } from 'three/addons/controls/OrbitControls.js';
+import { orbitView } from './orbit_view.js';
 
 const NONE = 255;
 const BACKGROUND = 0x101418;
@@ -149,20 +149,8 @@ async function main() {
   document.body.appendChild(renderer.domElement);
   const centre = bounds.isEmpty() ? new THREE.Vector3() : bounds.getCenter(new THREE.Vector3());
   const radius = bounds.isEmpty() ? 10 : Math.max(bounds.getSize(new THREE.Vector3()).length() / 2, 1);
-  const camera = new THREE.PerspectiveCamera(50, window.innerWidth / window.innerHeight, radius / 1000, radius * 20);
-  camera.up.set(0, 0, 1);  // the map's z is up
-  camera.position.set(centre.x - 0.2 * radius, centre.y - 0.9 * radius, centre.z + 1.6 * radius);
-  const controls = new OrbitControls(camera, renderer.domElement);
-  controls.target.copy(centre);
-  controls.update();
-  const render = () => renderer.render(scene, camera);
-  controls.addEventListener('change', render);
-  window.addEventListener('resize', () => {
-    camera.aspect = window.innerWidth / window.innerHeight;
-    camera.updateProjectionMatrix();
-    renderer.setSize(window.innerWidth, window.innerHeight);
-    render();
-  });
+  const eye = new THREE.Vector3(centre.x - 0.2 * radius, centre.y - 0.9 * radius, centre.z + 1.6 * radius);
+  const { camera, render } = orbitView(renderer, scene, centre, eye, radius);
 
   // The panel: facts, the question box, the colour bar, class layers, the clicked point.
   const panel = document.getElementById('slamvdb-panel');

@@ -6,7 +6,7 @@
 // origin, point count) and <script id="slamvdb-points" type="application/octet-stream">: base64
 // of N x 3 float32 positions (metres, world frame minus `origin`) followed by N x 3 uint8 colours.
 import * as THREE from 'three';
-import { OrbitControls } from 'three/addons/controls/OrbitControls.js';
+import { orbitView } from './orbit_view.js';
 
 function decodeBase64(text) {
   const binary = atob(text.trim());
@@ -81,21 +81,8 @@ function main() {
   renderer.setSize(window.innerWidth, window.innerHeight);
   document.body.appendChild(renderer.domElement);
 
-  const camera = new THREE.PerspectiveCamera(50, window.innerWidth / window.innerHeight, radius / 1000, radius * 20);
-  camera.up.set(0, 0, 1);  // the map's z is up
-  camera.position.set(sphere.center.x - radius, sphere.center.y - radius, sphere.center.z + radius);
-  const controls = new OrbitControls(camera, renderer.domElement);
-  controls.target.copy(sphere.center);
-  controls.update();
-
-  const render = () => renderer.render(scene, camera);
-  controls.addEventListener('change', render);
-  window.addEventListener('resize', () => {
-    camera.aspect = window.innerWidth / window.innerHeight;
-    camera.updateProjectionMatrix();
-    renderer.setSize(window.innerWidth, window.innerHeight);
-    render();
-  });
+  const c = sphere.center;
+  const { render } = orbitView(renderer, scene, c, new THREE.Vector3(c.x - radius, c.y - radius, c.z + radius), radius);
   addOverlay(meta);
   render();
   // For tests and scripts: what was drawn.
