@@ -48,11 +48,12 @@ try {
     await page.evaluate(() => { window.slamvdbOpened = true; });  // gone if the page reloads
     result.first = { ...(await page.evaluate(look)), drawn: (await page.evaluate(countPixels)).drawn };
     const drawnAtFirst = result.first.submaps ? result.first.submaps.length : 0;
-    // Two more submaps drawn, or mapping over and its last change drawn.
+    // Two more submaps drawn, or mapping over (the page opened late: what it drew is reported, the
+    // caller judges).
     await page.waitForFunction((n) => {
       const live = window.slamvdbServe.live;
-      return live && (live.submaps.length >= n + 2 || (live.progress && !live.progress.mapping && live.events > 0));
-    }, drawnAtFirst, { timeout: 90000, polling: 100 });
+      return live && (live.submaps.length >= n + 2 || (live.progress && !live.progress.mapping));
+    }, drawnAtFirst, { timeout: 90000, polling: 100 }).catch((error) => { result.wait_error = String(error); });
     await page.waitForTimeout(500);  // a change being applied
     result.later = { ...(await page.evaluate(look)), drawn: (await page.evaluate(countPixels)).drawn };
     result.reloaded = !(await page.evaluate(() => window.slamvdbOpened === true));
