@@ -12,6 +12,7 @@
 #include "command_registry.hpp"
 #include "input_options.hpp"
 #include "io_options.hpp"
+#include "live_serve_option.hpp"
 #include "yaml_config.hpp"
 #include "map_option_checks.hpp"
 #include "option_checks.hpp"
@@ -55,6 +56,7 @@ struct Options {
   double max_image_pixels = static_cast<double>(kDefaultMaxImagePixels);
   ColourBasisChoice colour_basis;
   RecordingOptions recording;
+  LiveServeOptions serve;
 };
 
 std::unique_ptr<FeatureSource> make_feature_source(const Options& opt, const SensorInput& input) {
@@ -164,6 +166,12 @@ void run(Options opt, const std::string& config) {
   const auto input = open_input(opt.dataset, input_options);
   const Sequence& seq = input->sequence();
   print_input(*input);
+  std::optional<LiveServer> live;  // --serve: the map as it is built (bound before any file is written)
+  if (!opt.serve.address.empty()) {
+    live.emplace(opt.serve, seq.root.string(), opt.pipeline.map.semantic.dim,
+                 opt.features == "simulated" ? std::optional(opt.sim.seed) : std::nullopt);
+    live->watch(opt.pipeline);
+  }
   opt.pipeline.realtime = opt.realtime;
   opt.pipeline.queue_bytes = static_cast<std::size_t>(opt.queue_mb * 1e6);
   const auto source = make_feature_source(opt, *input);
@@ -215,6 +223,7 @@ void run(Options opt, const std::string& config) {
                                  [&](std::size_t done, std::size_t total, const StreamProgress& read) {
                                    if (!bar) bar.emplace("map", total, "scans");
                                    bar->update(done, read_rate(read, started));
+                                   if (live) live->progress(done, total);
                                  });
   if (bar) bar->finish();
   fmt::print("{}\n", escape_control_keep_lines(report.summary()));
@@ -232,6 +241,7 @@ void run(Options opt, const std::string& config) {
              report.submaps_unloaded ? ""
                                      : fmt::format(", {} world cells in the global index, {:.1f} MB in memory",
                                                    map.num_index_cells(), map.memory_bytes() / 1e6));
+  if (live) live->finish(std::move(map));
 }
 
 void add(CLI::App& root) {
@@ -355,7 +365,9 @@ void add(CLI::App& root) {
   add_max_memory_option(cmd, opt->max_memory_gb);
   add_colour_basis_option(cmd, opt->colour_basis);
   opt->recording.add_to(cmd);
+  opt->serve.add_to(cmd);
   add_option_checks(cmd, [opt, cmd] {
+    opt->serve.check();
     check_map_options(opt->pipeline, MappingChoices{opt->features, opt->feature_size, opt->sim_feature_precision,
                                                     opt->precision, opt->distortion, opt->max_memory_gb});
     check_colour_basis_option(opt->colour_basis, opt->pipeline.map.semantic.dim);

@@ -3,19 +3,15 @@
 // SIMULATED one, said so in every answer) is loaded once, with a cache of text embeddings. Every
 // answer comes from the same library functions as `query` and `info --json --check`.
 #include <fmt/format.h>
-#include <signal.h>
 #include <spdlog/spdlog.h>
 
-#include <unistd.h>
-
-#include <cerrno>
 #include <cstdio>
-#include <fstream>
 #include <thread>
 
 #include "command_registry.hpp"
 #include "io_options.hpp"
 #include "option_checks.hpp"
+#include "serve_access.hpp"
 #include "text_encoder_option.hpp"
 #include "slamvdb/server/http_server.hpp"
 
@@ -33,30 +29,8 @@ struct Options {
   std::size_t ann_min_cells = 200000;  // maps this large get an ANN index for top-k queries
 };
 
-// Another address than loopback needs --token or an explicit --insecure-no-auth: a map must not
-// be readable by the whole network because of a typo in --bind.
-// Written by the signal handler, read by run() (see there).
-int stop_pipe[2] = {-1, -1};
-
-bool is_loopback(const std::string& address) {
-  return address == "localhost" || address == "::1" || address.rfind("127.", 0) == 0;
-}
-
-// The bearer token from its file: the first line, without surrounding blanks; at least 16
-// characters (a short token is guessed).
-std::string read_token(const std::string& file) {
-  std::ifstream in(file);
-  std::string token;
-  if (!in || !std::getline(in, token)) throw Error(fmt::format("--token {}: cannot read a line", file));
-  const auto first = token.find_first_not_of(" \t\r");
-  const auto last = token.find_last_not_of(" \t\r");
-  token = first == std::string::npos ? "" : token.substr(first, last - first + 1);
-  if (token.size() < 16) throw Error(fmt::format("--token {}: the token has {} characters; use at least 16", file, token.size()));
-  return token;
-}
-
 void run(const Options& opt) {
-  const std::string token = opt.token_file.empty() ? "" : read_token(opt.token_file);
+  const std::string token = opt.token_file.empty() ? "" : read_token("--token", opt.token_file);
   // Below ann_min_cells exact scoring is fast enough (about 5 ms of a core per 100 k cells).
   const AnnOptions ann;
   auto map = open_map_file_service(opt.map, &ann, opt.ann_min_cells);
@@ -92,19 +66,9 @@ void run(const Options& opt) {
   options.tls_key = opt.tls_key;
   MapServer server(map, std::move(text), std::move(queries), options);
 
-  // SIGINT / SIGTERM end the server cleanly. The handler only writes a byte to a pipe (async-signal
-  // safe, whichever thread the signal lands on: TBB's and the server's threads exist already); this
-  // thread waits for it and stops the server outside any handler. Installed before the address is
+  // SIGINT / SIGTERM end the server cleanly (serve_access.hpp). Installed before the address is
   // printed: whoever reads it may signal at once.
-  if (pipe(stop_pipe) != 0) throw Error("serve: cannot create the stop pipe");
-  struct sigaction on_stop {};
-  on_stop.sa_handler = [](int signal) {
-    const char byte = static_cast<char>(signal);
-    [[maybe_unused]] const auto n = write(stop_pipe[1], &byte, 1);
-  };
-  sigemptyset(&on_stop.sa_mask);
-  sigaction(SIGINT, &on_stop, nullptr);
-  sigaction(SIGTERM, &on_stop, nullptr);
+  const StopSignal stop;
   const int port = server.bind();
   // A line of stdout names the address (with --port 0, the port the system chose); scripts and tests
   // read the port from it.
@@ -114,15 +78,12 @@ void run(const Options& opt) {
   std::fflush(stdout);
   std::thread serving([&server] {
     server.run();
-    const char byte = 0;  // the server ended by itself: let the waiting thread go on
-    [[maybe_unused]] const auto n = write(stop_pipe[1], &byte, 1);
+    StopSignal::notify();  // the server ended by itself: let the waiting thread go on
   });
-  char signal = 0;
-  while (read(stop_pipe[0], &signal, 1) < 0 && errno == EINTR) {
-  }
+  const int signal = stop.wait();
   server.stop();
   serving.join();
-  spdlog::info("server stopped (signal {})", static_cast<int>(signal));
+  spdlog::info("server stopped (signal {})", signal);
 }
 
 void add(CLI::App& root) {
@@ -196,9 +157,8 @@ void add(CLI::App& root) {
       ->capture_default_str()
       ->check(integer_range(0, 1'000'000'000));
   add_option_checks(cmd, [opt] {
-    if (!is_loopback(opt->bind) && opt->token_file.empty() && !opt->insecure_no_auth)
-      usage_error(fmt::format("--bind {}: another address than loopback needs --token FILE (or --insecure-no-auth)",
-                              opt->bind));
+    check_serve_access("--bind", opt->bind, !opt->token_file.empty(), opt->insecure_no_auth, "--token",
+                       "--insecure-no-auth");
     if (opt->tls_cert.empty() != opt->tls_key.empty()) usage_error("--tls-cert and --tls-key go together");
     if (!opt->costs.empty() && opt->queries.empty()) usage_error("--cost needs --queries (the classes it gives costs to)");
   });

@@ -16,6 +16,7 @@
 #include "feature_options.hpp"
 #include "map_option_checks.hpp"
 #include "io_options.hpp"
+#include "live_serve_option.hpp"
 #include "option_checks.hpp"
 #include "progress.hpp"
 #include "slamvdb/core/error.hpp"
@@ -42,6 +43,7 @@ struct Options {
   ColourBasisChoice colour_basis;
   std::string fusion_weighting = "paper";
   RecordingOptions recording;
+  LiveServeOptions serve;
 };
 
 // Pose errors of the scans that have a ground-truth pose, after SE(3) alignment.
@@ -85,6 +87,12 @@ void run(Options opt, const std::string& config) {
   SlamMappingOptions slam_options{opt.pipeline, opt.tracking, MergeOptions{opt.min_merge_overlap}};
   // The map file grows submap by submap while mapping, as in `map`, so that finished submaps far
   // from the vehicle can leave memory (--unload-radius); corrections and merges are kept in step.
+  std::optional<LiveServer> live;  // --serve: the map as it is built (bound before any file is written)
+  if (!opt.serve.address.empty()) {
+    live.emplace(opt.serve, seq.root.string(), opt.pipeline.map.semantic.dim,
+                 source && opt.features.features == "simulated" ? std::optional(opt.features.sim_seed) : std::nullopt);
+    live->watch(slam_options.pipeline);
+  }
   const MapInfo start_info = map_info_for(seq, source.get(), opt.pipeline);
   const OutputTarget target = resolve_output(opt.output);
   auto writer = MapFileWriter::create(opt.output, opt.pipeline.map, start_info);
@@ -97,6 +105,7 @@ void run(Options opt, const std::string& config) {
     bar->update(done, fmt::format("{:.0f} m{}{}", r.distance,
                                   r.loop_closer ? fmt::format(", {} loops", r.loop_closer->loops().size()) : "",
                                   rate.empty() ? "" : ", " + rate));
+    if (live) live->progress(done, total);
   };
   SlamMappingResult run = [&] {
     try {
@@ -154,6 +163,7 @@ void run(Options opt, const std::string& config) {
   }
   fmt::print("map saved to {}: {} submaps, {} semantic entries{}\n", opt.output, saved.submaps.size(),
              saved.semantic_voxels, opt.poses_out.empty() ? "" : "; poses written to " + opt.poses_out);
+  if (live) live->finish(std::move(map));
 }
 
 void add(CLI::App& root) {
@@ -217,7 +227,9 @@ void add(CLI::App& root) {
   add_max_memory_option(cmd, opt->max_memory_gb);
   add_colour_basis_option(cmd, opt->colour_basis);
   opt->recording.add_to(cmd);
+  opt->serve.add_to(cmd);
   add_option_checks(cmd, [opt] {
+    opt->serve.check();
     check_feature_options(opt->features);
     opt->pipeline.map.semantic.dim = opt->features.dim;
     set_fusion_weighting(opt->pipeline, opt->fusion_weighting);

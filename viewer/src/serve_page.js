@@ -3,7 +3,10 @@
 // so the page needs nothing but the server. It draws GET /api/points (chunks per submap, each placed
 // by its T_world_submap, at the finest level of detail within the point budget), colours points by
 // class with a layer toggle per class, runs a text question (GET /api/points?query=) as a heat map
-// with a colour bar, and shows what the map holds at a clicked point (POST /api/at).
+// with a colour bar, and shows what the map holds at a clicked point (POST /api/at). In live mode
+// (`map|slam --serve`: /api/info has "live") it follows GET /api/events without reloading: the
+// chunks of new and growing submaps are fetched (GET /api/points?submap=ID), moved submaps are
+// re-placed by their new T_world_submap (nothing fetched), and the mapping progress is shown.
 import * as THREE from 'three';
 import { orbitView } from './orbit_view.js';
 
@@ -47,6 +50,12 @@ export function decodePoints(buffer) {
   }
   return { flags, meta, chunks };
 }
+
+// A chunk's name across answers: its submap and its octree node's corner.
+const chunkKey = (chunk) => `${chunk.submap}:${chunk.origin.join(',')}`;
+
+// T_world_submap as the 4 x 4 rows of /api/submaps -> the chunk's 12 floats (rows 0..2).
+const rowsToT = (rows) => Float32Array.from(rows.slice(0, 3).flat());
 
 // T_world_submap * translate(origin) * scale(step): the chunk's quantised positions are drawn as they come.
 function chunkMatrix(chunk) {
@@ -97,32 +106,38 @@ async function main() {
   });
   // One Points object per (chunk, class): a class layer is shown or hidden as a whole.
   const layers = [];
-  const bounds = new THREE.Box3();
-  answer.chunks.forEach((chunk, c) => {
-    const matrix = chunkMatrix(chunk);
-    const byValue = new Map();
-    for (let i = 0; i < chunk.n; ++i) {
-      if (!byValue.has(chunk.values[i])) byValue.set(chunk.values[i], []);
-      byValue.get(chunk.values[i]).push(i);
+  const hidden = new Set();
+  const addChunks = (chunks) => {  // returns their bounds (world)
+    const bounds = new THREE.Box3();
+    for (const chunk of chunks) {
+      const matrix = chunkMatrix(chunk);
+      const byValue = new Map();
+      for (let i = 0; i < chunk.n; ++i) {
+        if (!byValue.has(chunk.values[i])) byValue.set(chunk.values[i], []);
+        byValue.get(chunk.values[i]).push(i);
+      }
+      for (const [value, list] of byValue) {
+        const indices = Uint32Array.from(list);
+        const q = new Uint16Array(3 * indices.length);
+        indices.forEach((i, k) => q.set(chunk.q.subarray(3 * i, 3 * i + 3), 3 * k));
+        const geometry = new THREE.BufferGeometry();
+        geometry.setAttribute('position', new THREE.BufferAttribute(q, 3));
+        geometry.setAttribute('color', new THREE.BufferAttribute(new Uint8Array(3 * indices.length), 3, true));
+        const points = new THREE.Points(geometry, material);
+        // As position, rotation and scale (a rigid pose times a uniform scale decomposes exactly), so
+        // that the raycaster's point threshold is scaled into the chunk's units.
+        matrix.decompose(points.position, points.quaternion, points.scale);
+        points.updateMatrixWorld(true);
+        points.visible = !hidden.has(value);
+        geometry.computeBoundingBox();
+        bounds.union(geometry.boundingBox.clone().applyMatrix4(matrix));
+        scene.add(points);
+        layers.push({ points, chunk, key: chunkKey(chunk), value, indices });
+      }
     }
-    for (const [value, list] of byValue) {
-      const indices = Uint32Array.from(list);
-      const q = new Uint16Array(3 * indices.length);
-      indices.forEach((i, k) => q.set(chunk.q.subarray(3 * i, 3 * i + 3), 3 * k));
-      const geometry = new THREE.BufferGeometry();
-      geometry.setAttribute('position', new THREE.BufferAttribute(q, 3));
-      geometry.setAttribute('color', new THREE.BufferAttribute(new Uint8Array(3 * indices.length), 3, true));
-      const points = new THREE.Points(geometry, material);
-      // As position, rotation and scale (a rigid pose times a uniform scale decomposes exactly), so
-      // that the raycaster's point threshold is scaled into the chunk's units.
-      matrix.decompose(points.position, points.quaternion, points.scale);
-      points.updateMatrixWorld(true);
-      geometry.computeBoundingBox();
-      bounds.union(geometry.boundingBox.clone().applyMatrix4(matrix));
-      scene.add(points);
-      layers.push({ points, chunk: c, value, indices });
-    }
-  });
+    return bounds;
+  };
+  const bounds = addChunks(answer.chunks);
   // Colours are given in sRGB; three.js renders in linear space and encodes sRGB on output, so
   // the attributes hold linear values (else every colour would come out lighter than its legend).
   const linear = (rgb) => {
@@ -131,11 +146,14 @@ async function main() {
   };
   const heatTable = Array.from({ length: 256 }, (_, v) => linear(v === NONE ? [60, 60, 60] : heat(v / 254)));
   const classTable = Array.from({ length: 256 }, (_, v) => linear(classRgb(v)));
-  const paint = (scores) => {  // scores: a score answer's chunks (heat map), or null (classes)
-    for (const layer of layers) {
+  // scores: a score answer's chunks by chunkKey (heat map; a chunk drawn since the question: no
+  // score), or null (classes).
+  const paint = (scores, only = layers) => {
+    for (const layer of only) {
       const colour = layer.points.geometry.getAttribute('color');
+      const scored = scores && scores.get(layer.key);
       layer.indices.forEach((i, k) => {
-        const rgb = scores ? heatTable[scores[layer.chunk].values[i]] : classTable[layer.value];
+        const rgb = scores ? heatTable[scored ? scored.values[i] : NONE] : classTable[layer.value];
         colour.setXYZ(k, rgb[0], rgb[1], rgb[2]);
       });
       colour.needsUpdate = true;
@@ -150,13 +168,19 @@ async function main() {
   const centre = bounds.isEmpty() ? new THREE.Vector3() : bounds.getCenter(new THREE.Vector3());
   const radius = bounds.isEmpty() ? 10 : Math.max(bounds.getSize(new THREE.Vector3()).length() / 2, 1);
   const eye = new THREE.Vector3(centre.x - 0.2 * radius, centre.y - 0.9 * radius, centre.z + 1.6 * radius);
-  const { camera, render } = orbitView(renderer, scene, centre, eye, radius);
+  const { camera, controls, render } = orbitView(renderer, scene, centre, eye, radius);
 
   // The panel: facts, the question box, the colour bar, class layers, the clicked point.
   const panel = document.getElementById('slamvdb-panel');
   panel.appendChild(element('div', 'title', 'slamvdb serve'));
   const simulated = info.encoder && info.encoder.simulated ? ' (SIMULATED text encoder)' : '';
-  panel.appendChild(element('div', '', `${answer.meta.points.toLocaleString()} points at lod ${lod}, ${answer.meta.voxel_size} m voxels${simulated}`));
+  const facts = element('div', '');
+  const showFacts = (points) => { facts.textContent = `${points.toLocaleString()} points at lod ${lod}, ${answer.meta.voxel_size} m voxels${simulated}`; };
+  showFacts(answer.meta.points);
+  panel.appendChild(facts);
+  const progress = element('div', 'progress');
+  progress.id = 'slamvdb-progress';
+  panel.appendChild(progress);
   const form = element('form');
   const input = element('input');
   input.id = 'slamvdb-query';
@@ -172,7 +196,6 @@ async function main() {
   bar.hidden = barLabels.hidden = true;
   panel.appendChild(bar);
   panel.appendChild(barLabels);
-  const hidden = new Set();
   const layerRows = [...classes.map((c, k) => [k, c.name, c.rgb]), [NONE, 'no class', [128, 128, 128]]];
   for (const [value, name, rgb] of classes.length ? layerRows : []) {
     const row = element('label', 'legend');
@@ -207,8 +230,8 @@ async function main() {
       } else {
         status.textContent = `asking "${text}"...`;
         const scored = await fetchPoints({ lod, query: text });
-        state.scores = scored.chunks;
-        paint(scored.chunks);
+        state.scores = new Map(scored.chunks.map((c) => [chunkKey(c), c]));
+        paint(state.scores);
         barLabels.children[0].textContent = scored.meta.score.lo.toFixed(2);
         barLabels.children[1].textContent = `similarity to "${text}"`;
         barLabels.children[2].textContent = scored.meta.score.hi.toFixed(2);
@@ -240,7 +263,8 @@ async function main() {
     const lines = [`(${world.x.toFixed(2)}, ${world.y.toFixed(2)}, ${world.z.toFixed(2)})`,
                    `class: ${row.class ?? 'none'}`, `observations: ${row.count}`];
     if (state.scores && state.scoreRange) {
-      const v = state.scores[layer.chunk].values[layer.indices[hit.index]];
+      const scored = state.scores.get(layer.key);
+      const v = scored ? scored.values[layer.indices[hit.index]] : NONE;
       const [lo, hi] = state.scoreRange;
       lines.push(`score: ${v === NONE ? 'none' : (lo + ((hi - lo) * v) / 254).toFixed(3)}`);
     }
@@ -252,8 +276,86 @@ async function main() {
     const p = new THREE.Vector3(x, y, z).project(camera);
     return [((p.x + 1) / 2) * renderer.domElement.clientWidth, ((1 - p.y) / 2) * renderer.domElement.clientHeight];
   };
+  if (info.live) followLiveMap({ state, lod, layers, addChunks, paint, render, showFacts, progress, fit: bounds.isEmpty() ? { camera, controls } : null });
   render();
   window.slamvdbServe = state;
+}
+
+// Live mode: GET /api/events, each change applied in order (docs/serve-design.md "Live mode").
+function followLiveMap({ state, lod, layers, addChunks, paint, render, showFacts, progress, fit }) {
+  const live = { events: 0, submaps: [...new Set(layers.map((l) => l.chunk.submap))], progress: null, errors: [], skipped: 0 };
+  state.live = live;
+  const removeSubmap = (id) => {
+    for (let i = layers.length - 1; i >= 0; --i) {
+      if (layers[i].chunk.submap !== id) continue;
+      layers[i].points.removeFromParent();
+      layers[i].points.geometry.dispose();
+      layers.splice(i, 1);
+    }
+  };
+  const place = (id, T) => {
+    for (const layer of layers) {
+      if (layer.chunk.submap !== id) continue;
+      layer.chunk.T = T;
+      chunkMatrix(layer.chunk).decompose(layer.points.position, layer.points.quaternion, layer.points.scale);
+      layer.points.updateMatrixWorld(true);
+    }
+  };
+  // A submap's chunks anew (it is new, or grew): the old ones go when the new ones are here.
+  // 503 while the map is saved at the end of mapping, or no answer (the server stopped): tried
+  // again for a few seconds (with --serve-linger the saved map then answers), else left as drawn
+  // and counted.
+  const refetch = async (params, remove) => {
+    let answer;
+    for (let attempt = 0; !answer; ++attempt) {
+      try {
+        answer = await fetchPoints({ lod, ...params });
+      } catch (error) {
+        if (error.status !== undefined && error.status !== 503) throw error;  // none: the server is gone
+        if (attempt >= 5) { live.skipped += 1; return; }
+        await new Promise((resolve) => setTimeout(resolve, 500));
+      }
+    }
+    remove();
+    const before = layers.length;
+    const bounds = addChunks(answer.chunks);
+    paint(state.scores, layers.slice(before));
+    if (fit && !bounds.isEmpty()) {  // the map was empty when the page opened: look at the first points
+      const centre = bounds.getCenter(new THREE.Vector3());
+      const radius = Math.max(bounds.getSize(new THREE.Vector3()).length() / 2, 1) * 4;
+      fit.camera.position.set(centre.x - 0.2 * radius, centre.y - 0.9 * radius, centre.z + 1.6 * radius);
+      fit.camera.near = radius / 1000;
+      fit.camera.far = radius * 20;
+      fit.camera.updateProjectionMatrix();
+      fit.controls.target.copy(centre);
+      fit.controls.update();
+      fit = null;
+    }
+  };
+  const apply = async (change) => {
+    if (change.resync) {  // the stream fell behind: everything anew
+      await refetch({}, () => { for (const id of live.submaps) removeSubmap(id); });
+    } else {
+      for (const s of change.moved) place(s.id, rowsToT(s.T_world_submap));
+      for (const id of [...change.added.map((s) => s.id), ...change.grew]) await refetch({ submap: id }, () => removeSubmap(id));
+    }
+    live.events += 1;
+    live.submaps = [...new Set(layers.map((l) => l.chunk.submap))];
+    state.points = layers.reduce((n, l) => n + l.indices.length, 0);
+    showFacts(state.points);
+    render();
+  };
+  let queue = Promise.resolve();
+  const events = new EventSource('/api/events');
+  events.addEventListener('submaps', (event) => {
+    const change = JSON.parse(event.data);
+    queue = queue.then(() => apply(change)).catch((error) => { live.errors.push(String(error)); });
+  });
+  events.addEventListener('progress', (event) => {
+    const p = JSON.parse(event.data);
+    live.progress = p;
+    progress.textContent = p.mapping ? `mapping: ${p.scans_done} of ${p.scans_total || '?'} scans` : `mapping done (${p.scans_done} scans)`;
+  });
 }
 
 main().catch((error) => {

@@ -4,6 +4,7 @@
 
 #include <chrono>
 #include <optional>
+#include <utility>
 
 #include "slamvdb/core/error.hpp"
 #include "slamvdb/pipeline/realtime_pacer.hpp"
@@ -18,6 +19,14 @@ using Clock = std::chrono::steady_clock;
 MapInfo map_info_for(const Sequence& seq, const FeatureSource* features, const PipelineOptions& options) {
   return map_info_for(seq.root.string(), features ? features->model_id() : "", features ? features->description() : "",
                       options.fusion);
+}
+
+LiveReaders::LiveReaders(const Mapper& mapper, const PipelineOptions& options) : ending_(options.map_ending) {
+  if (options.map_started) options.map_started(mapper.map());
+}
+
+void LiveReaders::end() {
+  if (const auto ending = std::exchange(ending_, nullptr)) ending();
 }
 
 MapperOptions mapper_options(const Sequence& seq, const PipelineOptions& options) {
@@ -61,6 +70,7 @@ SemanticMap continue_map(SemanticMap start, const SensorInput& input, FeatureSou
   const auto stream = input.open(features != nullptr);
 
   Mapper mapper(mapper_options(seq, options), std::move(start), features, options.store);
+  LiveReaders live(mapper, options);
   // The streams in time order; at equal stamps a pose first (it covers the data of its time),
   // then the scan, then the image. The whole trajectory is known, so before each scan or image
   // every pose up to the first one at or after its stamp is given (earlier than its own time if
@@ -125,6 +135,8 @@ SemanticMap continue_map(SemanticMap start, const SensorInput& input, FeatureSou
     have = stream->next(frame);
   }
   while (pi < poses.size()) give_pose();  // no data left to wait for them (--realtime ends with the data)
+  mapper.end_mapping();  // the last submap finishes while live readers still see the map
+  live.end();
   SemanticMap map = mapper.finish();
   report = mapper.report();
   report.input_skipped = stream->skipped();

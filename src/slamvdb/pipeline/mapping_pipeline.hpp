@@ -34,6 +34,26 @@ struct PipelineOptions {
   const Trajectory* poses = nullptr;
   SubmapStore* store = nullptr;  // where finished submaps go as they finish (may be null)
   double unload_radius = 0;      // MapperOptions::unload_radius
+  // Live readers of the map being built (`map|slam --serve`): `map_started` gets the mapper's map
+  // once mapping starts (readable while it goes on, through the map's locks); `map_ending` is called
+  // before the mapper hands the map out, after which a reader must not touch it. Both may be empty.
+  std::function<void(const SemanticMap&)> map_started;
+  std::function<void()> map_ending;
+};
+
+// Tells PipelineOptions' live readers (map_started, map_ending) when the mapper's map may be read:
+// from construction until end() or destruction (an error that ends mapping early), whichever comes
+// first; both come before the map leaves the mapper (Mapper::finish) or the mapper is destroyed.
+class LiveReaders {
+ public:
+  LiveReaders(const Mapper& mapper, const PipelineOptions& options);
+  ~LiveReaders() { end(); }
+  LiveReaders(const LiveReaders&) = delete;
+  LiveReaders& operator=(const LiveReaders&) = delete;
+  void end();
+
+ private:
+  std::function<void()> ending_;
 };
 
 // What a map of `sequence` built with `features` (may be null) and `options` records about itself

@@ -90,6 +90,7 @@ SlamMappingResult map_with_own_poses(const SensorInput& input, FeatureSource* fe
   const MapInfo info = map_info_for(seq, features, options.pipeline);
   Mapper mapper(mapper_options(seq, options.pipeline), SemanticMap(options.pipeline.map, info), features,
                 options.pipeline.store);
+  LiveReaders live(mapper, options.pipeline);
   SubmapCorrections corrections;
   Pose K_given = Pose::Identity();  // the correction in the poses given to the mapper
   std::size_t loops_seen = 0, optimizations_seen = 0;
@@ -193,6 +194,7 @@ SlamMappingResult map_with_own_poses(const SensorInput& input, FeatureSource* fe
   corrections.merge_ready(mapper.submaps(), std::nullopt, [&](int target, int source) {
     return mapper.merge_submaps(target, source, options.merge);
   });
+  live.end();
   SemanticMap map = mapper.finish();
   PipelineReport report = mapper.report();
   report.input_skipped = stream->skipped();

@@ -215,9 +215,10 @@ void MapServer::Impl::add_routes() {
        }},
       {"/api/points", "GET", limit,
        [this](const httplib::Request& req, httplib::Response& res) {
-         const GetParams params(req, "GET /api/points", {"bbox", "near", "radius", "lod", "limit", "query"});
+         const GetParams params(req, "GET /api/points", {"bbox", "near", "radius", "lod", "limit", "query", "submap"});
          const PointsQuery request = decode_points_request(
-             {params.region(), params.get("lod"), params.get("limit"), params.get("query")}, options.limits);
+             {params.region(), params.get("lod"), params.get("limit"), params.get("query"), params.get("submap")},
+             options.limits);
          res.status = 200;
          res.set_content(answer_points(context, request), "application/octet-stream");
        }},

@@ -69,6 +69,12 @@ class MapService {
   // A counter that grows whenever the map changes (a submap finished, moved or merged): GET
   // /api/events tells viewers. A saved map never changes: 0.
   virtual std::uint64_t changes() const { return 0; }
+  // Live mode (live_map_service.hpp): what changed after counter value `after`, oldest first, each
+  // {"changes": N, "added": [...], "moved": [...], "grew": [...], "left": [...], "active": ID|null}
+  // (docs/serve-design.md "Live mode"); [] for a map that never changes.
+  virtual nlohmann::json changes_since(std::uint64_t /*after*/) const { return nlohmann::json::array(); }
+  // Live mode: {"mapping": bool, "scans_done": N, "scans_total": N (0: not known)}; null otherwise.
+  virtual nlohmann::json progress() const { return nullptr; }
   // The ANN index of top-k questions (GET /healthz "index"): "none", "building" (questions are
   // scored exactly meanwhile), "ready" or "failed" (exact, the reason logged).
   virtual std::string index_state() const { return "none"; }

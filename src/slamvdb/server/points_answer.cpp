@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 
 #include <cmath>
+#include <limits>
 
 #include "slamvdb/core/point_text.hpp"
 
@@ -32,6 +33,8 @@ PointsQuery decode_points_request(const PointsParams& params, const ServerLimits
     r.points.region = decode_region_params(params.region, "GET /api/points");
   if (params.lod) r.points.lod = static_cast<int>(whole_number_param(*params.lod, "lod", 0, kPointsMaxLod));
   if (params.limit) r.points.limit = whole_number_param(*params.limit, "limit", 1, kPointsMaxLimit);
+  if (params.submap)
+    r.points.submap = static_cast<int>(whole_number_param(*params.submap, "submap", 0, std::numeric_limits<int>::max()));
   if (params.query) {
     if (params.query->empty()) throw RequestError(400, "query", "query is empty (a text, e.g. query=tall%20grass)");
     if (params.query->size() > limits.max_text_bytes)

@@ -13,7 +13,7 @@ namespace slamvdb {
 
 struct PointsParams {
   RegionParams region;  // bbox and/or near + radius, as /api/classes; none: the whole map
-  std::optional<std::string> lod, limit, query;
+  std::optional<std::string> lod, limit, query, submap;
 };
 
 struct PointsQuery {
@@ -22,7 +22,7 @@ struct PointsQuery {
 };
 
 // lod: an integer 0..kPointsMaxLod (default 0); limit: an integer 1..kPointsMaxLimit (default
-// kPointsDefaultLimit); query: 1..limits.max_text_bytes bytes. Errors: RequestError 400 naming the parameter.
+// kPointsDefaultLimit); submap: a submap id (0..2^31-1; its chunks only); query: 1..limits.max_text_bytes bytes. Errors: RequestError 400 naming the parameter.
 PointsQuery decode_points_request(const PointsParams& params, const ServerLimits& limits);
 
 // The answer's bytes (application/octet-stream). Its meta JSON: values ("class", "score" or

@@ -82,6 +82,7 @@ PointChunks collect_point_chunks(const SemanticMap& map, const PointsRequest& re
   std::vector<SubmapVoxels> submaps;
   std::size_t points = 0;
   for (const SubmapInfo& info : map.submaps()) {
+    if (request.submap && info.id != *request.submap) continue;
     SubmapVoxels s{info.id, info.T_world_submap, {}};
     try {
       map.read_submap(info.id, [&](const Submap& submap) {

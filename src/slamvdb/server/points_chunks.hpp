@@ -36,6 +36,7 @@ struct PointsRequest {
   std::optional<QueryRegion> region;  // world frame; a point is in it when its centre is; null: the whole map
   int lod = 0;                        // 0..kPointsMaxLod
   std::size_t limit = kPointsDefaultLimit;
+  std::optional<int> submap;          // one submap only (live mode: the page fetches a new submap's chunks)
 };
 
 // What each point's byte says: the class of its index cell against `queries` (classify_map's class,

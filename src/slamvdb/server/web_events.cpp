@@ -2,6 +2,7 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <chrono>
 #include <memory>
 #include <optional>
@@ -20,6 +21,17 @@ std::string map_event_text(const MapService& map, std::uint64_t changes) {
   return fmt::format("id: {}\nevent: map\ndata: {}\n\n", changes, data.dump());
 }
 
+namespace {
+
+// A live-mode event ("submaps" or "progress"), its data one JSON line.
+std::string live_event_text(const char* event, const nlohmann::json& data) {
+  const std::string id = data.contains("changes") ? fmt::format("id: {}\n", data["changes"].get<std::uint64_t>()) : "";
+  return fmt::format("{}event: {}\ndata: {}\n\n", id, event,
+                     data.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace));
+}
+
+}  // namespace
+
 MapEventStreams::MapEventStreams(const MapService& map, const std::atomic<bool>& stopping, EventStreamOptions options)
     : map_(map), stopping_(stopping), options_(options) {}
 
@@ -32,6 +44,7 @@ void MapEventStreams::open(httplib::Response& res) {
   }
   struct Stream {
     std::optional<std::uint64_t> sent;  // the counter last sent
+    nlohmann::json progress;            // the progress last sent (live mode)
     std::chrono::steady_clock::time_point last_write = std::chrono::steady_clock::now();
   };
   auto stream = std::make_shared<Stream>();
@@ -45,16 +58,27 @@ void MapEventStreams::open(httplib::Response& res) {
           sink.done();
           return true;
         }
-        const std::uint64_t changes = map_.changes();
+        std::uint64_t changes = map_.changes();
         const auto now = std::chrono::steady_clock::now();
         std::string text;
         if (!stream->sent) text = "retry: 2000\n";
         if (!stream->sent || *stream->sent != changes) {
+          // Live mode: what changed since the last event this stream sent (none on the first: the
+          // page loads the whole map then), then the counter.
+          if (stream->sent)
+            for (const nlohmann::json& e : map_.changes_since(*stream->sent)) {
+              text += live_event_text("submaps", e);
+              changes = std::max(changes, e.at("changes").get<std::uint64_t>());  // one that came meanwhile
+            }
           text += map_event_text(map_, changes);
           stream->sent = changes;
-        } else if (std::chrono::duration<double>(now - stream->last_write).count() >= options_.heartbeat_seconds) {
-          text = ": heartbeat\n\n";
         }
+        if (nlohmann::json progress = map_.progress(); progress != stream->progress) {
+          if (!progress.is_null()) text += live_event_text("progress", progress);
+          stream->progress = std::move(progress);
+        }
+        if (text.empty() && std::chrono::duration<double>(now - stream->last_write).count() >= options_.heartbeat_seconds)
+          text = ": heartbeat\n\n";
         if (text.empty()) {
           std::this_thread::sleep_for(std::chrono::duration<double>(options_.poll_seconds));
           return true;

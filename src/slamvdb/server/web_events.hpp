@@ -2,7 +2,9 @@
 // GET /api/events: Server-Sent Events that tell a viewer when the map changed (a counter that
 // grows with every finished, moved or merged submap: MapService::changes()), so a page can reload
 // its points without polling. A saved map never changes: its stream says so once, then sends a
-// heartbeat comment. Live mode (`map --serve`, later) bumps the counter. Each stream holds one
+// heartbeat comment. Live mode (`map|slam --serve`, live_map_service.hpp) bumps the counter and
+// sends before each "map" event what changed ("submaps" events), and "progress" events as scans
+// are mapped (formats: docs/serve-design.md "Live mode", docs/openapi.yaml). Each stream holds one
 // worker thread of the server for its life, so at most `max_streams` are open (more: 503).
 #include <atomic>
 #include <cstdint>

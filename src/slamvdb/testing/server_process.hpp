@@ -9,8 +9,10 @@
 #include <unistd.h>
 
 #include <chrono>
+#include <optional>
 #include <stdexcept>
 #include <string>
+#include <thread>
 #include <vector>
 
 extern char** environ;
@@ -69,6 +71,30 @@ class ServerProcess {
   const std::string& output() const { return output_; }  // stdout up to the address line
   pid_t pid() const { return pid_; }
 
+  // Waits up to `timeout_seconds` for the process to end by itself (e.g. `map --serve` when
+  // mapping is done): its exit code (>= 0) or -signal; nothing while it still runs.
+  std::optional<int> wait(double timeout_seconds) {
+    if (pid_ <= 0) return exit_;
+    const auto deadline = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_seconds);
+    for (;;) {
+      int status = 0;
+      if (waitpid(pid_, &status, WNOHANG) == pid_) {
+        pid_ = -1;
+        exit_ = WIFEXITED(status) ? WEXITSTATUS(status) : -WTERMSIG(status);
+        return exit_;
+      }
+      if (std::chrono::steady_clock::now() >= deadline) return std::nullopt;
+      std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    }
+  }
+  bool running() { return !wait(0.0); }
+  // All of stdout: call once the process has ended (reads to the end).
+  const std::string& read_all() {
+    char c[4096];
+    for (ssize_t n; out_ >= 0 && (n = read(out_, c, sizeof c)) > 0;) output_.append(c, static_cast<std::size_t>(n));
+    return output_;
+  }
+
   // Sends `signal` and waits: the exit code (>= 0), or -signal when a signal ended it.
   int stop(int signal = SIGTERM) {
     if (pid_ <= 0) return -1;
@@ -84,6 +110,7 @@ class ServerProcess {
   int out_ = -1;
   int port_ = 0;
   std::string output_;
+  std::optional<int> exit_;  // once wait() saw it end
 };
 
 }  // namespace slamvdb::testing

@@ -1,0 +1,251 @@
+#include "slamvdb/server/live_map_service.hpp"
+
+#include <fmt/format.h>
+#include <spdlog/spdlog.h>
+
+#include <set>
+
+#include "slamvdb/io/map_info_json.hpp"
+#include "slamvdb/server/request_decoding.hpp"
+
+namespace slamvdb {
+
+namespace live_map_service_detail {
+
+// /api/info of a map in memory: what `info --json` says of a file, from the map itself. The file's
+// figures (bytes, voxel counts per submap) are not known while it is written: null.
+nlohmann::json live_info_json(const std::string& source, const SemanticMap& map,
+                              const std::vector<SubmapInfo>& submaps, std::optional<int> active) {
+  MapFileSummary summary;
+  summary.params = map.params();
+  summary.info = map.info();
+  for (const SubmapInfo& s : submaps) summary.submaps.push_back({s, 0, 0, 0, 0});
+  summary.known_voxels = map.num_known_voxels();
+  summary.occupied_voxels = map.num_occupied_voxels();
+  summary.semantic_voxels = map.num_semantic_voxels();
+  nlohmann::json j = map_info_json(source, summary, std::nullopt);
+  j["format_version"] = nullptr;
+  j["bytes"] = nullptr;
+  for (nlohmann::json& s : j["submaps"]) {
+    for (const char* field : {"blocks", "known_voxels", "occupied_voxels", "semantic_voxels"}) s[field] = nullptr;
+    s["active"] = active && s["id"].get<int>() == *active;
+  }
+  j["submaps_in_memory"] = submaps.size();
+  return j;
+}
+
+nlohmann::json submap_by_id(const nlohmann::json& info, int id) {
+  for (const nlohmann::json& s : info.at("submaps"))
+    if (s.at("id").get<int>() == id) return s;
+  return nullptr;
+}
+
+}  // namespace live_map_service_detail
+
+LiveMapService::LiveMapService(std::string source, int dim, LiveMapOptions options)
+    : source_(std::move(source)), options_(options), space_{dim, ""} {
+  info_ = {{"path", source_}, {"submaps", nlohmann::json::array()}, {"submaps_in_memory", 0}};
+  refresher_ = std::thread([this] { refresh_loop(); });
+}
+
+LiveMapService::~LiveMapService() {
+  {
+    const std::lock_guard lock(state_mutex_);
+    stopping_ = true;
+  }
+  wake_.notify_all();
+  refresher_.join();
+}
+
+void LiveMapService::attach(const SemanticMap& map) {
+  const std::unique_lock lock(source_mutex_);
+  map_ = &map;
+  space_ = {map.params().semantic.dim, map.info().model_id};
+  grid_resolution_ = map.params().index_cell();
+  // Not owned: the mapper's map lives until detach(), which waits for every reader.
+  reader_ = std::make_unique<SemanticMapService>(std::shared_ptr<const SemanticMap>(&map, [](const SemanticMap*) {}),
+                                                 nlohmann::json());
+  {
+    const std::lock_guard state(state_mutex_);
+    mapping_ = true;
+  }
+  refresh_locked();
+}
+
+void LiveMapService::detach() {
+  const std::unique_lock lock(source_mutex_);
+  if (map_) refresh_locked();
+  reader_.reset();
+  map_ = nullptr;
+  ended_ = true;
+  const std::lock_guard state(state_mutex_);
+  mapping_ = false;
+}
+
+void LiveMapService::attach_final(std::shared_ptr<const SemanticMap> map) {
+  const std::unique_lock lock(source_mutex_);
+  final_ = std::move(map);
+  map_ = final_.get();
+  space_ = {map_->params().semantic.dim, map_->info().model_id};
+  grid_resolution_ = map_->params().index_cell();
+  reader_ = std::make_unique<SemanticMapService>(final_, nlohmann::json());
+  refresh_locked();
+}
+
+void LiveMapService::set_progress(std::size_t scans_done, std::size_t scans_total) {
+  const std::lock_guard lock(state_mutex_);
+  scans_done_ = scans_done;
+  scans_total_ = scans_total;
+}
+
+void LiveMapService::refresh_loop() {
+  std::unique_lock state(state_mutex_);
+  while (!stopping_) {
+    wake_.wait_for(state, std::chrono::duration<double>(options_.refresh_seconds), [this] { return stopping_; });
+    if (stopping_) break;
+    state.unlock();
+    {
+      const std::shared_lock lock(source_mutex_);
+      try {
+        if (map_) refresh_locked();
+      } catch (const std::exception& e) {  // a bug of ours: said, and the next look tries again
+        spdlog::error("live map: {}", e.what());
+      }
+    }
+    state.lock();
+  }
+}
+
+// One look at the map: what appeared, moved, grew or left since the last one becomes one event.
+// Only the refresher and attach/detach (exclusive) call it, so two never run at once.
+void LiveMapService::refresh_locked() {
+  using namespace live_map_service_detail;
+  const std::vector<SubmapInfo> submaps = map_->submaps();
+  const std::optional<int> active = map_->active_submap_id();
+  nlohmann::json info = live_info_json(source_, *map_, submaps, active);
+  const std::size_t cells = map_->num_index_cells();
+  const std::lock_guard state(state_mutex_);
+  nlohmann::json added = nlohmann::json::array(), moved = nlohmann::json::array(), grew = nlohmann::json::array(),
+                 left = nlohmann::json::array();
+  std::map<int, SubmapInfo> now;
+  for (const SubmapInfo& s : submaps) {
+    now[s.id] = s;
+    const auto before = seen_.find(s.id);
+    if (before == seen_.end()) {
+      added.push_back(submap_by_id(info, s.id));
+    } else if (before->second.T_world_submap.matrix() != s.T_world_submap.matrix()) {
+      moved.push_back(submap_by_id(info, s.id));
+    } else if (before->second.time_range.end != s.time_range.end || before->second.finished != s.finished) {
+      grew.push_back(s.id);  // scans or images went into it, or it was finished
+    }
+  }
+  for (const auto& [id, s] : seen_)
+    if (!now.count(id)) left.push_back(id);
+  info_ = std::move(info);
+  semantic_cells_ = cells;
+  seen_ = std::move(now);
+  const bool active_changed = active != active_;
+  active_ = active;
+  if (added.empty() && moved.empty() && grew.empty() && left.empty() && !active_changed) return;
+  ++changes_;
+  events_.push_back({{"changes", changes_},
+                     {"added", std::move(added)},
+                     {"moved", std::move(moved)},
+                     {"grew", std::move(grew)},
+                     {"left", std::move(left)},
+                     {"active", active ? nlohmann::json(*active) : nlohmann::json()}});
+  while (events_.size() > options_.max_events) events_.pop_front();
+}
+
+std::uint64_t LiveMapService::changes() const {
+  const std::lock_guard lock(state_mutex_);
+  return changes_;
+}
+
+nlohmann::json LiveMapService::changes_since(std::uint64_t after) const {
+  const std::lock_guard lock(state_mutex_);
+  nlohmann::json out = nlohmann::json::array();
+  if (after >= changes_) return out;
+  if (events_.empty() || events_.front().at("changes").get<std::uint64_t>() > after + 1) {
+    // The stream fell behind the events kept: it reloads everything instead.
+    out.push_back({{"changes", changes_}, {"resync", true}, {"active", active_ ? nlohmann::json(*active_) : nlohmann::json()}});
+    return out;
+  }
+  for (const nlohmann::json& e : events_)
+    if (e.at("changes").get<std::uint64_t>() > after) out.push_back(e);
+  return out;
+}
+
+nlohmann::json LiveMapService::progress() const {
+  const std::lock_guard lock(state_mutex_);
+  return {{"mapping", mapping_}, {"scans_done", scans_done_}, {"scans_total", scans_total_}};
+}
+
+nlohmann::json LiveMapService::info() const {
+  const std::lock_guard lock(state_mutex_);
+  nlohmann::json j = info_;
+  j["live"] = {{"mapping", mapping_}, {"scans_done", scans_done_}, {"scans_total", scans_total_}, {"changes", changes_}};
+  return j;
+}
+
+std::size_t LiveMapService::semantic_cells() const {
+  const std::lock_guard lock(state_mutex_);
+  return semantic_cells_;
+}
+
+template <class F>
+auto LiveMapService::read(F&& f) const {
+  const std::shared_lock lock(source_mutex_);
+  if (!reader_)
+    throw RequestError(503, "", ended_ ? "mapping is ending: the map is being saved; try again in a moment"
+                                       : "mapping has not started yet; try again in a moment");
+  return f(*reader_);
+}
+
+QuerySpace LiveMapService::space() const {
+  const std::shared_lock lock(source_mutex_);
+  return space_;
+}
+
+double LiveMapService::grid_resolution() const {
+  const std::shared_lock lock(source_mutex_);
+  return grid_resolution_;
+}
+
+MapService::SearchAnswer LiveMapService::search(std::span<const float> query, const SearchOptions& options,
+                                                bool exact) const {
+  return read([&](const SemanticMapService& m) { return m.search(query, options, exact); });
+}
+
+std::vector<PointQuery> LiveMapService::at(std::span<const Vec3d> points_world, const QuerySet* queries,
+                                           const ClassifyOptions& options, ModelIdCheck model_check) const {
+  return read([&](const SemanticMapService& m) { return m.at(points_world, queries, options, model_check); });
+}
+
+void LiveMapService::classify(const QuerySet& queries, std::span<ScoredCell> results, const ClassifyOptions& options,
+                              ModelIdCheck model_check) const {
+  read([&](const SemanticMapService& m) {
+    m.classify(queries, results, options, model_check);
+    return 0;
+  });
+}
+
+std::vector<ClassifiedCell> LiveMapService::classes(const QuerySet& queries, const QueryRegion& region,
+                                                    const ClassifyOptions& options, ModelIdCheck model_check) const {
+  return read([&](const SemanticMapService& m) { return m.classes(queries, region, options, model_check); });
+}
+
+std::size_t LiveMapService::region_cells(const QueryRegion& region) const {
+  return read([&](const SemanticMapService& m) { return m.region_cells(region); });
+}
+
+MapService::RegionGrid LiveMapService::nav_grid(const QuerySet& queries, const NavGridOptions& options,
+                                                const ClassifyOptions& classify, ModelIdCheck model_check) const {
+  return read([&](const SemanticMapService& m) { return m.nav_grid(queries, options, classify, model_check); });
+}
+
+PointChunks LiveMapService::points(const PointsRequest& request, const PointValueSource& values) const {
+  return read([&](const SemanticMapService& m) { return m.points(request, values); });
+}
+
+}  // namespace slamvdb

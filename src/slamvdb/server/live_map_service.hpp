@@ -1,0 +1,95 @@
+#pragma once
+// Live mode of the server (`slamvdb map|slam --serve`, issue 21): the map a running mapper builds,
+// served while it grows. Every read goes to a SemanticMapService over the mapper's map (its locks
+// make reading safe while the mapping thread writes); a refresh thread looks at the map at a
+// bounded rate and turns what changed into events for GET /api/events: submaps that appeared,
+// moved (loop corrections), grew (the active submap) or left memory (merged, or unloaded far from
+// the vehicle), with the change counter, plus the scans done. The map is read from memory only:
+// submaps that left it are not answered ("submaps_in_memory" in /api/info says how many are).
+//
+// Life: attach() when mapping starts (PipelineOptions::map_started), detach() before the mapper
+// hands the map out (map_ending: waits for reads in flight; from then on reads answer 503 until
+// attach_final, if ever, gives the saved map).
+#include <deque>
+#include <map>
+#include <optional>
+#include <shared_mutex>
+
+#include "slamvdb/core/fair_shared_mutex.hpp"
+
+#include "slamvdb/server/map_service.hpp"
+
+namespace slamvdb {
+
+struct LiveMapOptions {
+  double refresh_seconds = 0.5;  // how often the map is looked at (the active submap's refresh rate)
+  std::size_t max_events = 256;  // events kept for streams that fall behind (older: a "resync")
+};
+
+class LiveMapService final : public MapService {
+ public:
+  // `source`: what the map is built from (shown as /api/info "path"); `dim`: its embeddings'.
+  LiveMapService(std::string source, int dim, LiveMapOptions options = {});
+  ~LiveMapService() override;
+  LiveMapService(const LiveMapService&) = delete;
+  LiveMapService& operator=(const LiveMapService&) = delete;
+
+  void attach(const SemanticMap& map);  // the mapper's map, until detach()
+  void detach();                        // a last look at the map first (the last submap finished)
+  // The saved map, served from then on (`--serve-linger`); mapping is over.
+  void attach_final(std::shared_ptr<const SemanticMap> map);
+  void set_progress(std::size_t scans_done, std::size_t scans_total);
+
+  std::uint64_t changes() const override;
+  nlohmann::json changes_since(std::uint64_t after) const override;
+  nlohmann::json progress() const override;
+
+  QuerySpace space() const override;
+  std::size_t semantic_cells() const override;
+  nlohmann::json info() const override;
+  SearchAnswer search(std::span<const float> query, const SearchOptions& options, bool exact) const override;
+  std::vector<PointQuery> at(std::span<const Vec3d> points_world, const QuerySet* queries,
+                             const ClassifyOptions& options, ModelIdCheck model_check) const override;
+  void classify(const QuerySet& queries, std::span<ScoredCell> results, const ClassifyOptions& options,
+                ModelIdCheck model_check) const override;
+  std::vector<ClassifiedCell> classes(const QuerySet& queries, const QueryRegion& region,
+                                      const ClassifyOptions& options, ModelIdCheck model_check) const override;
+  std::size_t region_cells(const QueryRegion& region) const override;
+  RegionGrid nav_grid(const QuerySet& queries, const NavGridOptions& options, const ClassifyOptions& classify,
+                      ModelIdCheck model_check) const override;
+  double grid_resolution() const override;
+  PointChunks points(const PointsRequest& request, const PointValueSource& values) const override;
+
+ private:
+  // Runs f(the service over the current map) under the shared lock; 503 while there is none.
+  template <class F>
+  auto read(F&& f) const;
+  void refresh_locked();  // source_mutex_ held (shared or exclusive)
+  void refresh_loop();
+
+  const std::string source_;
+  const LiveMapOptions options_;
+  QuerySpace space_;
+  double grid_resolution_ = 0;
+
+  // map_ and reader_; fair: a detach() waits for the reads in flight, not for every later one
+  mutable FairSharedMutex source_mutex_;
+  const SemanticMap* map_ = nullptr;
+  std::shared_ptr<const SemanticMap> final_;
+  std::unique_ptr<SemanticMapService> reader_;
+  bool ended_ = false;  // detach() was called
+
+  mutable std::mutex state_mutex_;  // everything below
+  std::condition_variable wake_;
+  bool stopping_ = false, mapping_ = false;
+  std::size_t scans_done_ = 0, scans_total_ = 0;
+  std::uint64_t changes_ = 0;
+  std::map<int, SubmapInfo> seen_;  // the submaps at the last look, by id
+  std::optional<int> active_;
+  nlohmann::json info_;             // /api/info at the last look
+  std::size_t semantic_cells_ = 0;
+  std::deque<nlohmann::json> events_;  // the last max_events "submaps" events, oldest first
+  std::thread refresher_;
+};
+
+}  // namespace slamvdb
