@@ -24,6 +24,7 @@ namespace {
 
 struct Options {
   std::string base, other, output, json, initial;
+  std::string adjusted_base;  // --adjust-base: BASE with its anchors corrected too, written here
   double initial_radius = 10.0;
   std::optional<Pose> prior;  // from --initial, once checked
 };
@@ -51,11 +52,13 @@ void run(const Options& opt) {
   const std::string incompatible =
       sessions::map_incompatibility(base_summary.params, base_summary.info, other_summary.params, other_summary.info);
   if (!incompatible.empty()) throw Error(fmt::format("cannot align {} to {}: {}", opt.other, opt.base, incompatible));
-  const SemanticMap base = load_map(opt.base);
+  SemanticMap base = load_map(opt.base);
   SemanticMap other = load_map(opt.other);
   sessions::AlignmentConfig config;
   if (opt.prior) config.prior = sessions::AlignmentPrior{*opt.prior, opt.initial_radius, 0.52};
-  const sessions::MapAlignment result = sessions::align_maps(base, other, config);
+  const sessions::MapAlignment result = opt.adjusted_base.empty()
+                                            ? sessions::align_maps(base, other, config)
+                                            : sessions::align_maps_adjusting_base(base, other, config);
   fmt::print("align {} ({} submaps) to {} ({} submaps)\n{}", opt.other, other_summary.submaps.size(), opt.base,
              base_summary.submaps.size(), alignment_report_text(result));
   if (!opt.json.empty()) write_output_file(opt.json, alignment_report_json(result).dump(2) + "\n");
@@ -65,6 +68,11 @@ void run(const Options& opt) {
   const MapFileSummary written = save_map(opt.output, other);
   fmt::print("wrote {} ({} submaps, {:.1f} MB)\n", opt.output, written.submaps.size(),
              static_cast<double>(written.file_bytes) / 1e6);
+  if (!opt.adjusted_base.empty()) {
+    const MapFileSummary adjusted = save_map(opt.adjusted_base, base);
+    fmt::print("wrote {} (BASE with adjusted anchors, {} submaps, {:.1f} MB)\n", opt.adjusted_base,
+               adjusted.submaps.size(), static_cast<double>(adjusted.file_bytes) / 1e6);
+  }
 }
 
 void add(CLI::App& root) {
@@ -90,6 +98,10 @@ void add(CLI::App& root) {
                   "With --initial: how far (metres) a place may lie from where the prior puts it (unused without)")
       ->check(finite_range(0.0, bounds::kMaxRange, true))
       ->capture_default_str();
+  cmd->add_option("--adjust-base", opt->adjusted_base,
+                  "Correct BASE's submap anchors too (one joint pose graph over both maps' submaps, BASE's first "
+                  "submap held; no re-integration) and write BASE so adjusted to this file (.svdb). Default: BASE "
+                  "stays as it is");
   add_option_checks(cmd, [opt] {
     if (!opt->initial.empty()) opt->prior = parse_initial_pose(opt->initial);
   });
@@ -98,6 +110,7 @@ void add(CLI::App& root) {
   io->input("other", opt->other);
   io->output("-o", opt->output);
   io->output("--json", opt->json);
+  io->output("--adjust-base", opt->adjusted_base);
   cmd->callback([opt, io] {
     io->check();
     run(*opt);

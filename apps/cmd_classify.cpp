@@ -78,7 +78,7 @@ void run(const Options& opt) {
                "margin alone\n",
                summary.statistics_unknown);
   if (!opt.csv.empty()) {
-    write_classified_csv(opt.csv, cells, queries, opt.min_confidence);
+    write_classified_csv(opt.csv, cells, queries, opt.min_confidence, &map.info().sessions);
     fmt::print("CSV  {}: {} rows\n", opt.csv, cells.size());
   }
   const std::vector<Rgb> colours = class_colours(queries);
@@ -124,7 +124,7 @@ void add(CLI::App& root) {
       ->required()
       ->check(CLI::ExistingFile);
   cmd->add_option("-o,--output", opt->csv,
-                  "Write one row per voxel: x,y,z,class,score,margin,count,confidence (CSV; class `uncertain` below "
+                  "Write one row per voxel: x,y,z,class,score,margin,count,confidence,last_session (CSV; class `uncertain` below "
                   "--min-confidence)");
   cmd->add_option("--png", opt->png,
                   "Write the terrain seen from above: the class of the ground of every column (not the top: tree "

@@ -41,6 +41,7 @@ struct Options {
   std::string layer = "auto";
   ColourBasisChoice colour_basis;
   std::vector<std::string> sessions;  // empty: every session
+  std::vector<std::string> last_sessions;  // empty: every voxel; else those last observed by these
 };
 
 // The format of an output: --format for a single output, else its extension.
@@ -71,7 +72,20 @@ void run(Options opt) {
                               opt.colour_basis.file, escape_control(opt.colour_basis.model_id), opt.map,
                               escape_control(summary.info.model_id)));
   }
-  const SemanticMap map = load_map_of_sessions(opt.map, opt.sessions);
+  if (!opt.last_sessions.empty()) {  // names checked before any voxel is read
+    try {
+      sessions::session_ids_named(read_map_summary(opt.map).info, opt.last_sessions);
+    } catch (const Error& e) {
+      throw Error(fmt::format("--last-session: {}: {}", opt.map, e.what()));
+    }
+  }
+  SemanticMap map = load_map_of_sessions(opt.map, opt.sessions);
+  if (!opt.last_sessions.empty()) {
+    const sessions::LastObservedSelection kept = sessions::keep_last_observed(map, opt.last_sessions);
+    fmt::print(stderr, "--last-session {}: {} of {} semantic voxels were last observed by it\n",
+               fmt::join(opt.last_sessions, ","), kept.semantic_voxels_kept,
+               kept.semantic_voxels_kept + kept.semantic_voxels_removed);
+  }
   std::optional<QuerySet> queries;
   std::vector<ClassifiedCell> cells;
   if (!opt.queries.empty()) {
@@ -195,6 +209,11 @@ void add(CLI::App& root) {
                 "With --queries or --colour-basis: accept another model id (same dim)");
   add_colour_basis_option(cmd, opt->colour_basis);
   add_session_option(cmd, opt->sessions, "Only these sessions' submaps (as `info` lists them; repeatable)");
+  cmd->add_option("--last-session", opt->last_sessions,
+                  "What changed between drives: only the semantic voxels whose newest observation is from these "
+                  "sessions (the others stay as grey context)")
+      ->delimiter(',')
+      ->type_name("NAME[,NAME]");
   add_option_checks(cmd, [opt] {
     if (!opt->colour_basis.file.empty() && !opt->queries.empty())
       usage_error("--colour-basis colours by PCA; with --queries the colours are the classes'");

@@ -163,9 +163,10 @@ void run_points(const Options& opt, const SemanticMap& map, const std::vector<Ve
   const auto answers = query_points(map, points, queries ? &*queries : nullptr, options,
                                     opt.ignore_model_id ? ModelIdCheck::kIgnore : ModelIdCheck::kRequireMatch);
   // weight / spread: the cell's observation statistics (spread S/W, empty for a map file before format
-  // 3); confidence: voxel_confidence of the class (with a query set).
+  // 3); confidence: voxel_confidence of the class (with a query set); last_session: the name of the
+  // newest session that observed the cell (issue 23).
   CsvWriter csv({"x", "y", "z", "found", "cell_x", "cell_y", "cell_z", "count", "class", "score", "margin", "weight",
-                 "spread", "confidence"});
+                 "spread", "confidence", "last_session"});
   for (const PointQuery& a : answers) {
     const std::string cls = a.match && a.match->class_index != kNoClass ? queries->names[a.match->class_index] : "";
     csv.row({fmt::format("{}", a.point_world.x()), fmt::format("{}", a.point_world.y()),
@@ -174,7 +175,8 @@ void run_points(const Options& opt, const SemanticMap& map, const std::vector<Ve
              fmt::format("{}", a.count), cls, a.match ? fmt::format("{:.6f}", a.match->score) : "",
              a.match ? fmt::format("{:.6f}", a.match->margin) : "",
              a.found ? weight_text(a.stats) : "", a.found ? spread_text(a.stats) : "",
-             a.match ? fmt::format("{:.4f}", a.confidence) : ""});
+             a.match ? fmt::format("{:.4f}", a.confidence) : "",
+             a.last_session_name});
   }
   if (opt.output.empty()) {
     // CSV on a terminal: class names are bounded when the query set is loaded (no control

@@ -29,12 +29,17 @@ namespace slamvdb::cli {
 // One row per semantic voxel of the index (cell centre in the world frame):
 // x,y,z,class,score,margin,count,confidence; the class is `uncertain` below min_confidence (score
 // and margin stay the best class's). `cells` in the order to write (sort_by_cell for a stable file).
+// With `sessions` (the map's), a last column last_session: the name of the newest session that
+// observed the voxel (issue 23).
 inline void write_classified_csv(const std::filesystem::path& path, const std::vector<ClassifiedCell>& cells,
-                                 const QuerySet& queries, float min_confidence = 0.f) {
-  CsvWriter csv({"x", "y", "z", "class", "score", "margin", "count", "confidence"});  // classified_columns()
-  for (const ClassifiedCell& c : cells) {
+                                 const QuerySet& queries, float min_confidence = 0.f,
+                                 const std::vector<SessionInfo>* sessions = nullptr) {
+  CsvWriter csv = sessions ? CsvWriter({"x", "y", "z", "class", "score", "margin", "count", "confidence", "last_session"})
+                           : CsvWriter({"x", "y", "z", "class", "score", "margin", "count", "confidence"});
+  for (const ClassifiedCell& c : cells) {  // classified_columns(), classified_row()
     const std::vector<std::string> r = classified_row(c, queries, min_confidence);
-    csv.row({r[0], r[1], r[2], r[3], r[4], r[5], r[6], r[7]});
+    if (sessions) csv.row({r[0], r[1], r[2], r[3], r[4], r[5], r[6], r[7], session_name(*sessions, c.last_session)});
+    else csv.row({r[0], r[1], r[2], r[3], r[4], r[5], r[6], r[7]});
   }
   write_output_file(path, csv.text());
 }

@@ -181,10 +181,11 @@ TEST_F(AlignCommand, RecoversThePoseAndWritesTheOtherMapInTheBasesWorld) {
 TEST_F(AlignCommand, RefusesMapsThatDoNotOverlapWithTheReason) {
   // A drive through other terrain (seed 8), as in AlignSessions.RefusesMapsThatDoNotOverlap.
   const AlignTestWorld world_b = make_align_world(8, align_command_unrelated_end());
-  const fs::path a = base(), b = file("seed8.svdb"), out = file("never.svdb");
+  const fs::path a = base(), b = file("seed8.svdb"), out = file("never.svdb"), adjusted = file("never_base.svdb");
   save_map(b, make_align_session_map(make_align_session(world_b, make_align_test_pose(-20.0, Vec3d(5, 5, 0)), 0, align_command_unrelated_end()),
                                      "SIMULATED terrain seed 8"));
-  const CommandResult r = run_cli("align " + q(a) + " " + q(b) + " -o " + q(out), 300);
+  const CommandResult r =
+      run_cli("align " + q(a) + " " + q(b) + " -o " + q(out) + " --adjust-base " + q(adjusted), 300);
   EXPECT_EQ(r.exit_code, 1) << r.output;
   EXPECT_NE(r.output.find("cannot align"), std::string::npos) << r.output;
   // The reason, whichever rule refused (here too few verified pairs agree; with the library's own
@@ -192,6 +193,10 @@ TEST_F(AlignCommand, RefusesMapsThatDoNotOverlapWithTheReason) {
   EXPECT_NE(r.output.find("refused      "), std::string::npos) << r.output;
   EXPECT_NE(r.output.find("not written"), std::string::npos) << r.output;
   EXPECT_FALSE(fs::exists(out)) << "a refused alignment writes no map";
+  EXPECT_FALSE(fs::exists(adjusted)) << "nor the adjusted base (--adjust-base)";
+  // --adjust-base naming an input is a usage error, before any work.
+  const CommandResult same = run_cli("align " + q(a) + " " + q(b) + " -o " + q(out) + " --adjust-base " + q(a));
+  EXPECT_EQ(same.exit_code, 2) << same.output;
 }
 
 TEST_F(AlignCommand, RefusesMapsThatCannotShareAWorldBeforeLoadingThem) {

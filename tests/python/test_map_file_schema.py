@@ -36,7 +36,7 @@ def read_map(path):
     assert db.execute("PRAGMA application_id").fetchone()[0] == 0x53564442  # "SVDB"
     version = db.execute("PRAGMA user_version").fetchone()[0]
     meta = dict(db.execute("SELECT key, value FROM meta"))
-    assert version == 4 and meta["format_version"] == "4", "this reader knows format version 4"
+    assert version == 5 and meta["format_version"] == "5", "this reader knows format version 5"
     voxel = float(meta["voxel_size"])
     cell = float(meta["index_cell_size"]) or voxel  # 0: the voxel size
     dim = int(meta["semantic_dim"])
@@ -64,7 +64,7 @@ def read_map(path):
 
 
 def read_sessions(path):
-    """The sessions (format version 4): id -> (name, source, time range, submap ids)."""
+    """The sessions (format version 4 and later): id -> (name, source, time range, submap ids)."""
     db = sqlite3.connect(f"file:{path}?mode=ro", uri=True)
     sessions = {sid: (name, source, (t0, t1), [])
                 for sid, name, source, t0, t1 in db.execute("SELECT id, name, source, time_begin, time_end FROM sessions")}

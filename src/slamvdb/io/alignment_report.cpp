@@ -61,6 +61,14 @@ nlohmann::json alignment_report_json(const sessions::MapAlignment& result) {
                        {"graph_correction_m", (after.translation() - rigid.translation()).norm()}});
   }
   j["anchors"] = anchors;
+  if (!result.base_anchors_after.empty()) {  // --adjust-base
+    nlohmann::json base = nlohmann::json::array();
+    for (const auto& [id, after] : result.base_anchors_after)
+      base.push_back({{"submap", id},
+                      {"T_base_submap", pose_json(after)},
+                      {"graph_correction_m", (after.translation() - result.base_anchors_before.at(id).translation()).norm()}});
+    j["base_anchors"] = base;
+  }
   return j;
 }
 
@@ -92,6 +100,13 @@ std::string alignment_report_text(const sessions::MapAlignment& result) {
   out += fmt::format("anchors      {} submaps moved into the base's world; the joint graph corrected them by up to "
                      "{:.3f} m beyond the rigid transform\n",
                      result.anchors_after.size(), largest);
+  if (!result.base_anchors_after.empty()) {  // --adjust-base
+    double moved = 0.0;
+    for (const auto& [id, after] : result.base_anchors_after)
+      moved = std::max(moved, (after.translation() - result.base_anchors_before.at(id).translation()).norm());
+    out += fmt::format("base anchors {} submaps adjusted by the joint graph (the first held), by up to {:.3f} m\n",
+                       result.base_anchors_after.size(), moved);
+  }
   return out;
 }
 

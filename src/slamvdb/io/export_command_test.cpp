@@ -124,11 +124,12 @@ TEST(ExportCommand, ClassifyMarksVoxelsBelowTheConfidenceThresholdUncertain) {
     std::ifstream csv(f.tmp.path / "u.csv");
     std::string line;
     std::getline(csv, line);
-    EXPECT_EQ(line, "x,y,z,class,score,margin,count,confidence");
+    EXPECT_EQ(line, "x,y,z,class,score,margin,count,confidence,last_session");
     std::size_t uncertain = 0;
     while (std::getline(csv, line)) {
       uncertain += line.find(",uncertain,") != std::string::npos;
-      if (confidences) confidences->push_back(std::stod(line.substr(line.rfind(',') + 1)));
+      const std::string fields = line.substr(0, line.rfind(','));  // without last_session
+      if (confidences) confidences->push_back(std::stod(fields.substr(fields.rfind(',') + 1)));
     }
     return uncertain;
   };

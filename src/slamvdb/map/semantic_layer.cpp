@@ -41,6 +41,7 @@ SemanticLayer::Handle SemanticLayer::allocate(const VoxelKey& key) {
   c.keys[h % kChunkSlots] = key;
   c.counts[h % kChunkSlots] = 0;
   c.stats[h % kChunkSlots] = {};
+  c.sessions[h % kChunkSlots] = kOwnSession;
   index_.emplace(key, h);
   if (tracking_) changes_.added.push_back(h);
   return h;
@@ -142,9 +143,11 @@ void SemanticLayer::set(const VoxelKey& key, const float* values, uint32_t count
 }
 
 void SemanticLayer::insert_raw(std::span<const VoxelKey> keys, std::span<const uint32_t> counts,
-                               const std::byte* embeddings, std::span<const VoxelStatistics> stats) {
+                               const std::byte* embeddings, std::span<const VoxelStatistics> stats,
+                               std::span<const uint16_t> sessions) {
   if (keys.size() != counts.size()) throw Error("insert_raw: keys and counts differ in length");
   if (!stats.empty() && stats.size() != keys.size()) throw Error("insert_raw: keys and statistics differ in length");
+  if (!sessions.empty() && sessions.size() != keys.size()) throw Error("insert_raw: keys and sessions differ in length");
   index_.reserve(index_.size() + keys.size());
   for (std::size_t i = 0; i < keys.size(); ++i) {
     if (counts[i] == 0) throw Error(fmt::format("semantic entry {} has a zero count", i));
@@ -153,8 +156,50 @@ void SemanticLayer::insert_raw(std::span<const VoxelKey> keys, std::span<const u
     const Handle h = allocate(keys[i]);
     count_ref(h) = counts[i];
     stats_ref(h) = stats.empty() ? unknown_statistics(counts[i]) : stats[i];
+    chunk(h).sessions[h % kChunkSlots] = sessions.empty() ? kOwnSession : sessions[i];
     std::memcpy(embedding(h), embeddings + i * bytes_per_embedding_, bytes_per_embedding_);
   }
+}
+
+namespace {
+uint16_t checked_session(int session) {
+  if (session < 0 || session >= SemanticLayer::kOwnSession)
+    throw Error(fmt::format("session id {} out of range (0..{})", session, SemanticLayer::kOwnSession - 1));
+  return static_cast<uint16_t>(session);
+}
+}  // namespace
+
+void SemanticLayer::set_session(Handle h, int session) {
+  chunk(h).sessions[h % kChunkSlots] = session == own_session_ ? kOwnSession : checked_session(session);
+}
+
+bool SemanticLayer::has_other_sessions() const {
+  bool other = false;
+  for_each([&](Handle h) { other = other || stored_session_of(h) != kOwnSession; });
+  return other;
+}
+
+void SemanticLayer::set_own_session(int session) { own_session_ = checked_session(session); }
+
+void SemanticLayer::renumber_sessions(const std::map<int, int>& new_id_of_old) {
+  const auto new_id = [&](int old) {
+    const auto it = new_id_of_old.find(old);
+    if (it == new_id_of_old.end())
+      throw Error(fmt::format("a semantic entry was last observed in session {}, which the map does not list", old));
+    return checked_session(it->second);
+  };
+  std::map<uint16_t, uint16_t> table;  // checked in full before anything changes
+  const uint16_t own = new_id(own_session_);
+  for_each([&](Handle h) {
+    const uint16_t s = stored_session_of(h);
+    if (s != kOwnSession && !table.count(s)) table[s] = new_id(s);
+  });
+  own_session_ = own;
+  for (auto& c : chunks_)
+    for (uint16_t& s : c->sessions) {
+      const auto it = table.find(s);
+      if (it != table.end()) s = it->second;  // free slots may hold anything
+    }
 }
 
 bool SemanticLayer::erase(const VoxelKey& key) {

@@ -6,7 +6,11 @@
 // Beyond the paper, every entry also keeps the statistics of its observations that a confidence
 // needs (8 bytes: VoxelStatistics): the sum of their weights (the count under Eq. 6.1, whose
 // observations all weigh 1) and their spread, the weighted sum of squared distances from the mean,
-// updated with West's weighted form of Welford's algorithm in the same pass as the mean.
+// updated with West's weighted form of Welford's algorithm in the same pass as the mean; and the
+// session that observed it last (2 bytes, issue 23: a uint16 SessionInfo::id, or kOwnSession for
+// the submap's own session, which the layer is told: SemanticMap sets it when it takes a submap).
+// Fusion never looks at it: every new entry is the submap's own; only merging submaps of
+// different sessions (submap_merge.hpp) gives an entry another session.
 //
 // Entries live in chunks of kChunkSlots slots (keys, counts and embeddings side by side), so that
 // a query can read them as contiguous blocks (for_each_chunk) and the memory per entry stays at
@@ -18,6 +22,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <limits>
+#include <map>
 #include <memory>
 #include <optional>
 #include <span>
@@ -99,8 +104,9 @@ class SemanticLayer {
   // Bulk insert (map loading): n new keys, counts >= 1, n x dim values in this layer's precision,
   // and their statistics (empty: unknown, weight = count). Throws Error on a zero count or a key
   // that is already present.
+  // sessions: each entry's last-observing session as stored (empty: all kOwnSession).
   void insert_raw(std::span<const VoxelKey> keys, std::span<const uint32_t> counts, const std::byte* embeddings,
-                  std::span<const VoxelStatistics> stats = {});
+                  std::span<const VoxelStatistics> stats = {}, std::span<const uint16_t> sessions = {});
   bool erase(const VoxelKey& key);
 
   std::optional<Handle> find(const VoxelKey& key) const;
@@ -115,6 +121,25 @@ class SemanticLayer {
   VoxelStatistics statistics_of(Handle h) const { return chunk(h).stats[h % kChunkSlots]; }
   float weight_of(Handle h) const { return chunk(h).stats[h % kChunkSlots].weight; }
   EmbeddingView embedding_of(Handle h) const { return {embedding(h), params_.precision}; }
+  // The newest session that observed the entry (SessionInfo::id), and as stored (kOwnSession:
+  // the submap's own session).
+  static constexpr uint16_t kOwnSession = UINT16_MAX;
+  int session_of(Handle h) const {
+    const uint16_t s = stored_session_of(h);
+    return s == kOwnSession ? own_session_ : s;
+  }
+  uint16_t stored_session_of(Handle h) const { return chunk(h).sessions[h % kChunkSlots]; }
+  // Sets it: kOwnSession when `session` is the own session. Throws Error outside 0..65534.
+  void set_session(Handle h, int session);
+  // Whether any entry was last observed by another session than the submap's.
+  bool has_other_sessions() const;
+
+  // The submap's own session (SubmapInfo::session; 0 until set): what kOwnSession stands for.
+  int own_session() const { return own_session_; }
+  void set_own_session(int session);
+  // Renumbers the own session and every entry's by new_id_of_old (maps of sessions merged into
+  // one); throws Error, changing nothing, for a session it does not list.
+  void renumber_sessions(const std::map<int, int>& new_id_of_old);
   void read(Handle h, float* out) const;  // decodes the embedding to fp32
 
   // Re-encodes every embedding (fp32 while a submap is written, the storage precision at rest).
@@ -127,6 +152,7 @@ class SemanticLayer {
     const VoxelKey* keys;
     const uint32_t* counts;
     const VoxelStatistics* stats;
+    const uint16_t* sessions;     // each slot's last-observing session as stored (kOwnSession)
     const std::byte* embeddings;  // slots x dim values in `precision`, row after row
     EmbeddingPrecision precision;
   };
@@ -136,7 +162,7 @@ class SemanticLayer {
       const Chunk& ch = *chunks_[c];
       const std::size_t slots = std::min(kChunkSlots, slots_used_ - c * kChunkSlots);
       f(ChunkView{static_cast<Handle>(c * kChunkSlots), slots, ch.keys.data(), ch.counts.data(), ch.stats.data(),
-                  ch.embeddings.get(), params_.precision});
+                  ch.sessions.data(), ch.embeddings.get(), params_.precision});
     }
   }
   template <class F>  // f(Handle) for every entry, in storage order
@@ -163,6 +189,7 @@ class SemanticLayer {
     std::array<VoxelKey, kChunkSlots> keys;
     std::array<uint32_t, kChunkSlots> counts{};  // 0 marks a free slot
     std::array<VoxelStatistics, kChunkSlots> stats{};
+    std::array<uint16_t, kChunkSlots> sessions{};
     std::unique_ptr<std::byte[]> embeddings;
   };
   Handle allocate(const VoxelKey& key);
@@ -181,6 +208,7 @@ class SemanticLayer {
 
   SemanticParams params_;
   std::size_t bytes_per_embedding_;
+  int own_session_ = 0;
   absl::flat_hash_map<VoxelKey, Handle> index_;
   std::vector<std::unique_ptr<Chunk>> chunks_;
   std::size_t slots_used_ = 0;  // slots ever handed out (the used prefix of the chunks)

@@ -253,5 +253,41 @@ TEST(SemanticLayer, BulkInsertRefusesZeroCountsAndDuplicates) {
   EXPECT_THROW(layer.insert_raw(fresh, zero, reinterpret_cast<const std::byte*>(data)), Error);
 }
 
+TEST(SemanticLayer, LastObservedSessionsAreTheSubmapsOwnUntilSetAndFollowARenumbering) {
+  SemanticLayer layer({2, EmbeddingPrecision::kFloat32});
+  const float e[2] = {1, 0};
+  layer.integrate({0, 0, 0}, e);
+  layer.integrate({1, 0, 0}, e);
+  const auto a = *layer.find({0, 0, 0}), b = *layer.find({1, 0, 0});
+  EXPECT_EQ(layer.stored_session_of(a), SemanticLayer::kOwnSession) << "fusion never names a session";
+  EXPECT_FALSE(layer.has_other_sessions());
+  layer.set_own_session(4);
+  EXPECT_EQ(layer.session_of(a), 4);
+  layer.set_session(b, 7);
+  EXPECT_EQ(layer.session_of(b), 7);
+  EXPECT_TRUE(layer.has_other_sessions());
+  layer.set_session(b, 4);  // the own session is stored as such
+  EXPECT_EQ(layer.stored_session_of(b), SemanticLayer::kOwnSession);
+  EXPECT_THROW(layer.set_session(b, SemanticLayer::kOwnSession), Error);
+  EXPECT_THROW(layer.set_session(b, -1), Error);
+  layer.set_session(b, 7);
+  EXPECT_THROW(layer.renumber_sessions({{4, 0}}), Error) << "session 7 is not listed";
+  EXPECT_EQ(layer.session_of(b), 7) << "a refused renumbering changes nothing";
+  layer.renumber_sessions({{4, 0}, {7, 1}});
+  EXPECT_EQ(layer.session_of(a), 0);
+  EXPECT_EQ(layer.session_of(b), 1);
+  EXPECT_EQ(layer.own_session(), 0);
+  // Bulk insert (map loading) takes the stored values as they are.
+  SemanticLayer loaded({2, EmbeddingPrecision::kFloat32});
+  const std::vector<VoxelKey> keys = {{1, 2, 3}, {4, 5, 6}};
+  const std::vector<uint32_t> counts = {2, 5};
+  const std::vector<uint16_t> sessions = {SemanticLayer::kOwnSession, 3};
+  const float data[4] = {1, 2, 3, 4};
+  loaded.insert_raw(keys, counts, reinterpret_cast<const std::byte*>(data), {}, sessions);
+  loaded.set_own_session(2);
+  EXPECT_EQ(loaded.session_of(*loaded.find({1, 2, 3})), 2);
+  EXPECT_EQ(loaded.session_of(*loaded.find({4, 5, 6})), 3);
+}
+
 }  // namespace
 }  // namespace slamvdb

@@ -207,6 +207,7 @@ void SemanticMap::add_finished_submap(SubmapInfo info, VoxelMap voxels) {
   check_rigid(info.id, info.T_world_submap);
   voxels.semantics().set_change_tracking(false);
   voxels.semantics().convert_to(params_.semantic.precision);
+  voxels.semantics().set_own_session(info.session);  // what its entries' kOwnSession means
   info.finished = true;
   WriteLock lock(mutex_);
   if (ids_.contains(info.id)) throw Error(fmt::format("submap id {} appears twice", info.id));

@@ -161,6 +161,7 @@ struct SourceCell {
   float log_odds = -std::numeric_limits<float>::infinity();  // max over the source voxels
   uint64_t count = 0;
   VoxelStatistics stats;    // combined (weights summed, spreads by Chan's rule)
+  int session = -1;         // the newest last-observed session of its entries
   std::vector<float> mean;  // weight-weighted, when count > 0
 };
 
@@ -182,7 +183,8 @@ double occupied_overlap(const VoxelMap& target, const VoxelMap& source, const Po
   return static_cast<double>(both) / static_cast<double>(std::min(n_target, n_source));
 }
 
-MergeReport merge_into(VoxelMap& target, const VoxelMap& source, const Pose& T_target_source) {
+MergeReport merge_into(VoxelMap& target, const VoxelMap& source, const Pose& T_target_source,
+                       const SessionOrder& sessions) {
   MergeReport report;
   const auto dim = static_cast<std::size_t>(target.semantics().dim());
   const OccupancyParams& op = target.occupancy().params();
@@ -205,6 +207,8 @@ MergeReport merge_into(VoxelMap& target, const VoxelMap& source, const Pose& T_t
     const uint32_t n = source.semantics().count_of(*h);
     const VoxelStatistics st = source.semantics().statistics_of(*h);
     source.semantics().read(*h, embedding.data());
+    const int session = source.semantics().session_of(*h);
+    c.session = c.session < 0 ? session : sessions.newest(c.session, session);
     if (c.mean.empty()) c.mean.assign(dim, 0.0f);
     if (source.semantics().params().single_view) {  // the baseline keeps its best observation
       if (c.count == 0 || st.weight > c.stats.weight) c.mean = embedding, c.stats = st;
@@ -229,8 +233,12 @@ MergeReport merge_into(VoxelMap& target, const VoxelMap& source, const Pose& T_t
     const std::optional<float> before = grid.log_odds(k);
     const float lo = before ? std::clamp(*before + c->log_odds, op.clamp_min, op.clamp_max) : c->log_odds;
     grid.set_log_odds(k, lo);
-    if (c->count > 0)
+    if (c->count > 0) {
+      const auto existing = layer.find(k);
+      const int session = existing ? sessions.newest(layer.session_of(*existing), c->session) : c->session;
       layer.accumulate(k, c->mean.data(), static_cast<uint32_t>(std::min<uint64_t>(c->count, UINT32_MAX)), c->stats);
+      layer.set_session(*layer.find(k), session);
+    }
     if (lo < op.occupied_threshold) {  // a semantic entry needs a surface; say what is dropped
       if (const auto h = layer.find(k)) {
         report.counts_dropped_free += layer.count_of(*h);

@@ -10,10 +10,12 @@
 // summed, statistics combined (Chan's rule). The result is then combined with the target: log-odds
 // added and clamped (independent evidence), semantic entries by the same weighted mean (Eq. 6.1
 // generalised to two counts). Single-view layers (a baseline) keep the entry of larger weight.
+// A combined entry's last-observed session is the newest of its parts' (SessionOrder).
 #include <cstdint>
 #include <string>
 #include <vector>
 
+#include "slamvdb/map/session_info.hpp"
 #include "slamvdb/map/voxel_map.hpp"
 
 namespace slamvdb {
@@ -36,8 +38,10 @@ struct MergeReport {
 };
 
 // Merges `source` into `target` (both in their own frames; T_target_source moves source points
-// into the target frame). Does not check the overlap; SemanticMap::merge_submaps does.
-MergeReport merge_into(VoxelMap& target, const VoxelMap& source, const Pose& T_target_source);
+// into the target frame). Does not check the overlap; SemanticMap::merge_submaps does. `sessions`
+// orders the entries' last-observed sessions (default: the larger id is the newer).
+MergeReport merge_into(VoxelMap& target, const VoxelMap& source, const Pose& T_target_source,
+                       const SessionOrder& sessions = {});
 
 // One cell of the world occupancy: summed (clamped) log-odds of every submap's voxels in it.
 struct WorldOccupancyCell {

@@ -146,7 +146,8 @@ namespace {
 // read and classified the same way whichever list it is in, so a region's rows equal the whole
 // map's rows of the same cells.
 std::vector<ClassifiedCell> classify_index_cells(const GlobalIndex& index, const QueryClassifier& classifier,
-                                                 std::size_t dim, const std::vector<std::size_t>* positions) {
+                                                 std::size_t dim, const std::vector<std::size_t>* positions,
+                                                 const SessionOrder& sessions) {
   const std::size_t total = positions ? positions->size() : index.size();
   std::vector<ClassifiedCell> out(total);
   constexpr std::size_t kBatch = 256;
@@ -170,6 +171,7 @@ std::vector<ClassifiedCell> classify_index_cells(const GlobalIndex& index, const
         local.rows[j] = v.embedding;
         const IndexCellKey& cell = index.key(at);
         out[begin + j] = {cell, center_of_key(cell, index.cell_size()), v.count, {}, v.stats};
+        out[begin + j].last_session = last_session_of_cell(index, at, sessions);
       }
       classifier.classify_combined(local.rows.data(), n, local.matches.data());
       for (std::size_t j = 0; j < n; ++j) {
@@ -184,13 +186,33 @@ std::vector<ClassifiedCell> classify_index_cells(const GlobalIndex& index, const
 
 }  // namespace
 
+int last_session_of_cell(const GlobalIndex& index, std::size_t cell, const SessionOrder& order) {
+  int newest = -1;
+  for (const GlobalIndex::EntryRef& r : index.refs(cell)) {
+    const int s = index.layer(r.submap)->session_of(r.handle);
+    newest = newest < 0 ? s : order.newest(newest, s);
+  }
+  return newest;
+}
+
+std::vector<int> last_sessions(const SemanticMap& map, std::span<const IndexCellKey> cells) {
+  const SessionOrder order(map.info().sessions);
+  std::vector<int> out(cells.size(), -1);
+  map.read_index([&](const GlobalIndex& index) {
+    for (std::size_t i = 0; i < cells.size(); ++i)
+      if (const auto at = index.find(cells[i])) out[i] = last_session_of_cell(index, *at, order);
+  });
+  return out;
+}
+
 std::vector<ClassifiedCell> classify_map(const SemanticMap& map, const QuerySet& queries,
                                          const ClassifyOptions& options, ModelIdCheck model_check) {
   check_compatible(queries, map.params().semantic.dim, map.info().model_id, model_check);
   const QueryClassifier classifier(queries, options);
   std::vector<ClassifiedCell> out;
   map.read_index([&](const GlobalIndex& index) {
-    out = classify_index_cells(index, classifier, static_cast<std::size_t>(map.params().semantic.dim), nullptr);
+    out = classify_index_cells(index, classifier, static_cast<std::size_t>(map.params().semantic.dim), nullptr,
+                               SessionOrder(map.info().sessions));
   });
   return out;
 }
@@ -202,7 +224,8 @@ std::vector<ClassifiedCell> classify_region(const SemanticMap& map, const QueryS
   std::vector<ClassifiedCell> out;
   map.read_index([&](const GlobalIndex& index) {
     const std::vector<std::size_t> inside = cells_of_region(index, region);  // as similarity_search finds them
-    out = classify_index_cells(index, classifier, static_cast<std::size_t>(map.params().semantic.dim), &inside);
+    out = classify_index_cells(index, classifier, static_cast<std::size_t>(map.params().semantic.dim), &inside,
+                               SessionOrder(map.info().sessions));
   });
   return out;
 }
@@ -226,6 +249,7 @@ std::vector<PointQuery> query_points(const SemanticMap& map, std::span<const Vec
   }
   const auto dim = static_cast<std::size_t>(map.params().semantic.dim);
   std::vector<PointQuery> out(points_world.size());
+  const SessionOrder sessions(map.info().sessions);
   map.read_index([&](const GlobalIndex& index) {
     std::vector<float> scratch(dim);
     for (std::size_t i = 0; i < points_world.size(); ++i) {
@@ -242,6 +266,8 @@ std::vector<PointQuery> query_points(const SemanticMap& map, std::span<const Vec
       q.cell_centre = v.position_world;
       q.count = v.count;
       q.entries = v.entries;
+      q.last_session = last_session_of_cell(index, *at, sessions);
+      q.last_session_name = session_name(map.info().sessions, q.last_session);
       q.embedding.resize(dim);
       kernels::decode(v.embedding, q.embedding.data(), dim);
       if (classifier) {

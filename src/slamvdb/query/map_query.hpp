@@ -7,6 +7,7 @@
 #include <limits>
 #include <optional>
 #include <span>
+#include <string>
 #include <vector>
 
 #include "slamvdb/map/semantic_map.hpp"
@@ -68,7 +69,14 @@ struct ClassifiedCell {
   QueryMatch match;  // class (into the query set), cosine score, margin to the runner-up
   VoxelStatistics stats{};  // its observations' weight and spread (spread NaN: map before format 3)
   float confidence = 0.f;   // voxel_confidence (query/class_confidence.hpp), 0..1
+  int last_session = 0;     // the newest session that observed it (SessionInfo::id)
 };
+
+// The newest session that observed any entry of index cell `cell` (its submaps' entries' last-
+// observed sessions, SemanticLayer::session_of, ordered by `order`).
+int last_session_of_cell(const GlobalIndex& index, std::size_t cell, const SessionOrder& order);
+// The same for cells by key (-1 for a key that is not a cell of the map).
+std::vector<int> last_sessions(const SemanticMap& map, std::span<const IndexCellKey> cells);
 
 // A cell classified below a confidence threshold (classify --min-confidence): its class is shown as
 // `uncertain`. Cells without a class are not uncertain, they have none.
@@ -109,6 +117,8 @@ struct PointQuery {
   VoxelStatistics stats{};      // the cell's observation statistics (spread NaN: map before format 3)
   std::optional<QueryMatch> match;  // with a query set
   float confidence = 0.f;       // voxel_confidence of the match (with a query set)
+  int last_session = 0;         // the newest session that observed the cell (when found)
+  std::string last_session_name;  // its name (session_name)
 };
 
 std::vector<PointQuery> query_points(const SemanticMap& map, std::span<const Vec3d> points_world,

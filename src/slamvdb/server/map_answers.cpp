@@ -131,7 +131,8 @@ nlohmann::json answer_at(const AnswerContext& context, const AtRequest& request)
         {"weight", a.found ? nlohmann::json(a.stats.weight) : nlohmann::json()},
         {"spread", a.found && a.stats.known() && a.stats.weight > 0 ? nlohmann::json(a.stats.spread / a.stats.weight)
                                                                     : nlohmann::json()},
-        {"confidence", a.match ? nlohmann::json(a.confidence) : nlohmann::json()}};
+        {"confidence", a.match ? nlohmann::json(a.confidence) : nlohmann::json()},
+        {"last_session", a.found ? nlohmann::json(a.last_session_name) : nlohmann::json()}};
     if (request.embedding) row["embedding"] = a.found ? nlohmann::json(a.embedding) : nlohmann::json();
     rows.push_back(std::move(row));
   }

@@ -45,8 +45,11 @@ Rows classify_cli_rows(const testing::ServedMap& s, const std::string& args) {
   auto records = testing::read_csv_strict(testing::read_text_file(out), &error);
   EXPECT_TRUE(records) << error;
   if (!records || records->empty()) return {};
-  EXPECT_EQ((*records)[0], (std::vector<std::string>{"x", "y", "z", "class", "score", "margin", "count", "confidence"}));
-  return {records->begin() + 1, records->end()};
+  EXPECT_EQ((*records)[0], (std::vector<std::string>{"x", "y", "z", "class", "score", "margin", "count", "confidence",
+                                                      "last_session"}));
+  Rows rows(records->begin() + 1, records->end());
+  for (auto& row : rows) row.pop_back();  // last_session: /api/classes does not answer it (yet)
+  return rows;
 }
 
 nlohmann::json get_json(testing::ServedMap& s, const std::string& path, int expected_status) {

@@ -89,7 +89,8 @@ std::vector<std::vector<std::string>> rows_of_at_answer(const nlohmann::json& an
                     fmt::format("{}", r.at("count").get<uint32_t>()),
                     r.at("class").is_null() ? "" : r.at("class").get<std::string>(),
                     num(r.at("score"), "{:.6f}"), num(r.at("margin"), "{:.6f}"), num(r.at("weight"), "{:.3f}"),
-                    num(r.at("spread"), "{:.6f}"), num(r.at("confidence"), "{:.4f}")});
+                    num(r.at("spread"), "{:.6f}"), num(r.at("confidence"), "{:.4f}"),
+                    r.at("last_session").is_null() ? "" : r.at("last_session").get<std::string>()});
   }
   return rows;
 }

@@ -7,7 +7,13 @@
 // 0.5 m clouds: about 0.08 m off at the anchors, too coarse to use when refined ones exist); consecutive
 // submaps keep their stored relative poses, weighted like odometry. The result goes to
 // SemanticMap::set_submap_poses: no re-integration.
-// Planned (--adjust-base): the base's submaps as vertices too, with only the first fixed.
+//
+// With --adjust-base (correct_both_anchors) the base's submaps are vertices too, only its first
+// (lowest id) fixed: consecutive base submaps keep their stored relative poses (the same odometry
+// model), and the evidence becomes relative, between the base submap a pair (or a refinement)
+// was measured against and the other submap: T_bsubmap_osubmap, which does not depend on either
+// anchor. So a base whose own anchors drifted is pulled straight where the other session saw
+// the same places consistently, and the other session follows the corrected base.
 #include <cstddef>
 #include <map>
 #include <vector>
@@ -37,5 +43,12 @@ struct JointGraphConfig {
 // start at T_base_other * T_other_submap.
 std::map<int, Pose> correct_other_anchors(const std::vector<SessionSubmap>& other, const SessionAlignment& alignment,
                                           const JointGraphConfig& config = {});
+
+// Both sessions' anchors in the base's world (by id), BASE's first submap held where it is.
+struct JointCorrection {
+  std::map<int, Pose> base, other;
+};
+JointCorrection correct_both_anchors(const std::vector<SessionSubmap>& base, const std::vector<SessionSubmap>& other,
+                                     const SessionAlignment& alignment, const JointGraphConfig& config = {});
 
 }  // namespace slamvdb::sessions

@@ -27,7 +27,9 @@ std::string map_incompatibility(const MapParams& base_params, const MapInfo& bas
   return {};
 }
 
-MapAlignment align_maps(const SemanticMap& base, SemanticMap& other, const AlignmentConfig& config) {
+namespace {
+
+MapAlignment align(const SemanticMap& base, SemanticMap& other, const AlignmentConfig& config, SemanticMap* adjust_base) {
   const std::string incompatible = map_incompatibility(base.params(), base.info(), other.params(), other.info());
   if (!incompatible.empty()) throw Error(incompatible);
   const std::vector<SessionSubmap> base_submaps = session_submaps(base), other_submaps = session_submaps(other);
@@ -35,9 +37,28 @@ MapAlignment align_maps(const SemanticMap& base, SemanticMap& other, const Align
   out.alignment = align_sessions(base_submaps, other_submaps, config);
   if (!out.alignment.aligned) return out;
   for (const SessionSubmap& s : other_submaps) out.anchors_before[s.id] = s.T_world_submap;
-  out.anchors_after = correct_other_anchors(other_submaps, out.alignment);
-  other.set_submap_poses(out.anchors_after);
+  if (adjust_base) {
+    JointCorrection both = correct_both_anchors(base_submaps, other_submaps, out.alignment);
+    for (const SessionSubmap& s : base_submaps) out.base_anchors_before[s.id] = s.T_world_submap;
+    out.anchors_after = std::move(both.other);
+    out.base_anchors_after = std::move(both.base);
+    other.set_submap_poses(out.anchors_after);
+    adjust_base->set_submap_poses(out.base_anchors_after);
+  } else {
+    out.anchors_after = correct_other_anchors(other_submaps, out.alignment);
+    other.set_submap_poses(out.anchors_after);
+  }
   return out;
+}
+
+}  // namespace
+
+MapAlignment align_maps(const SemanticMap& base, SemanticMap& other, const AlignmentConfig& config) {
+  return align(base, other, config, nullptr);
+}
+
+MapAlignment align_maps_adjusting_base(SemanticMap& base, SemanticMap& other, const AlignmentConfig& config) {
+  return align(base, other, config, &base);
 }
 
 }  // namespace slamvdb::sessions

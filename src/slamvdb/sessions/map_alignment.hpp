@@ -29,11 +29,18 @@ struct MapAlignment {
   // When aligned: every submap of the other map, its anchor before (its own world) and after
   // (the base's world, graph-corrected), by id.
   std::map<int, Pose> anchors_before, anchors_after;
+  // With --adjust-base (align_maps_adjusting_base), the base map's anchors likewise; else empty.
+  std::map<int, Pose> base_anchors_before, base_anchors_after;
 };
 
 // Aligns `other` to `base`; when aligned, moves `other`'s submap anchors into the base's world
 // (set_submap_poses). When refused (alignment.refused), `other` is unchanged. Throws Error for
 // incompatible maps (map_incompatibility) or an invalid config.
 MapAlignment align_maps(const SemanticMap& base, SemanticMap& other, const AlignmentConfig& config = {});
+
+// align_maps, then both maps' anchors corrected by one joint graph over both sessions' submaps
+// (correct_both_anchors: the base's first submap fixed) and set on both (`align --adjust-base`).
+// When refused, neither map changes.
+MapAlignment align_maps_adjusting_base(SemanticMap& base, SemanticMap& other, const AlignmentConfig& config = {});
 
 }  // namespace slamvdb::sessions

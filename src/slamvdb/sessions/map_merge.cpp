@@ -82,8 +82,16 @@ SemanticMap merge_session_maps(std::vector<SemanticMap>& inputs, const std::vect
       submaps.push_back(inputs[i].remove_finished_submap(s.id));
       submaps.back().first.id = static_cast<int>(submaps.size()) - 1;
       submaps.back().first.session = new_session_ids[i].at(s.session);
+      // Its voxels' last-observed sessions follow (an input listing no session tags them 0).
+      submaps.back().second.semantics().renumber_sessions(new_session_ids[i]);
     }
-  report.absorbed = merge_overlapping_sessions(submaps, overlap);
+  // Which drive is newer comes from the sessions' time ranges: the union of their submaps' (as a
+  // saved file has them), also for maps that were never saved; a session without submaps keeps its own.
+  std::map<int, TimeRange> of_submaps;
+  for (const auto& [submap, voxels] : submaps) of_submaps[submap.session].extend(submap.time_range);
+  for (SessionInfo& session : info.sessions)
+    if (of_submaps.contains(session.id)) session.time = of_submaps.at(session.id);
+  report.absorbed = merge_overlapping_sessions(submaps, overlap, SessionOrder(info.sessions));
   SemanticMap merged(inputs[0].params(), info);
   for (auto& [submap, voxels] : submaps) merged.add_finished_submap(submap, std::move(voxels));
   report.merged = map_contents(merged);

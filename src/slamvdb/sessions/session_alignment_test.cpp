@@ -177,6 +177,50 @@ TEST_F(AlignSessions, JointGraphRemovesTheOtherSessionsAnchorDrift) {
               worst_before, worst_after, worst_angle_after);
 }
 
+TEST_F(AlignSessions, AdjustingTheBaseRemovesTheBasesOwnAnchorDrift) {
+  // --adjust-base: the base's anchors drifted (growing along its drive, each submap's voxels right
+  // in its own frame), the other session's did not. Held fixed, the base keeps its drift; in one
+  // graph with the other session's submaps, only its first submap fixed, the consistent other
+  // session pulls it back.
+  std::vector<SessionSubmap> base = maps().base;
+  const std::vector<SessionSubmap>& other = maps().other;
+  const Pose T_base_other_truth = maps().T_other_world.inverse();
+  ASSERT_GE(base.size(), 2u);
+  std::vector<Pose> truth;
+  for (std::size_t i = 0; i < base.size(); ++i) {
+    truth.push_back(base[i].T_world_submap);
+    const double k = static_cast<double>(i);
+    base[i].T_world_submap = make_align_test_pose(0.3 * k, Vec3d(0.35 * k, 0.25 * k, 0.08 * k)) * base[i].T_world_submap;
+  }
+  const SessionAlignment result = align_sessions(base, other, session_alignment_test_config());
+  ASSERT_TRUE(result.aligned) << result.refused;
+  const JointCorrection both = correct_both_anchors(base, other, result);
+  ASSERT_EQ(both.base.size(), base.size());
+  ASSERT_EQ(both.other.size(), other.size());
+  EXPECT_TRUE(both.base.at(base[0].id).isApprox(base[0].T_world_submap)) << "the base's first submap is held";
+  double base_before = 0.0, base_after = 0.0, other_after = 0.0, other_fixed_base = 0.0;
+  for (std::size_t i = 0; i < base.size(); ++i) {
+    base_before = std::max(base_before, (base[i].T_world_submap.translation() - truth[i].translation()).norm());
+    base_after = std::max(base_after, (both.base.at(base[i].id).translation() - truth[i].translation()).norm());
+  }
+  const std::map<int, Pose> fixed_base = correct_other_anchors(other, result);
+  for (const SessionSubmap& s : other) {
+    const Vec3d t = (T_base_other_truth * s.T_world_submap).translation();
+    other_after = std::max(other_after, (both.other.at(s.id).translation() - t).norm());
+    other_fixed_base = std::max(other_fixed_base, (fixed_base.at(s.id).translation() - t).norm());
+  }
+  EXPECT_GT(base_before, 0.3) << "the drift is there";
+  // Measured: 0.668 m before, 0.433 m after; the other session 0.388 m against 0.733 m with the
+  // base held. Reduced, not removed: the pairs that tie the other session to the drifted base
+  // submap are robust (Cauchy) edges 6-7 sigma off at the start, so the kernel discounts them
+  // (docs/multi-session-design.md, "Third step").
+  EXPECT_LT(base_after, 0.8 * base_before) << "metres, worst base anchor after the joint graph";
+  EXPECT_LT(other_after, 0.7 * other_fixed_base) << "the other session's anchors in the true base world";
+  std::printf("SIMULATED base drift: worst base anchor error %.3f m before, %.3f m after --adjust-base; other "
+              "session's worst anchor %.3f m (%.3f m with the base held)\n",
+              base_before, base_after, other_after, other_fixed_base);
+}
+
 TEST_F(AlignSessions, LookAlikePlacesGiveNoFalseAlignment) {
   // Ground and objects repeat every 30 m along a straight route: every place has look-alikes one
   // or more periods away. The copy is moved by 12 m along the route, which is no multiple of 30.

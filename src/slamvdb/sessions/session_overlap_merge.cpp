@@ -28,7 +28,8 @@ uint64_t overlap_merge_observations(const VoxelMap& voxels) {
 }  // namespace
 
 std::vector<SubmapAbsorption> merge_overlapping_sessions(std::vector<std::pair<SubmapInfo, VoxelMap>>& submaps,
-                                                         const OverlapMergeOptions& options) {
+                                                         const OverlapMergeOptions& options,
+                                                         const SessionOrder& sessions) {
   std::vector<SubmapAbsorption> out;
   if (!options.enabled) return out;
   std::vector<Eigen::AlignedBox3d> boxes;
@@ -55,7 +56,7 @@ std::vector<SubmapAbsorption> merge_overlapping_sessions(std::vector<std::pair<S
                        .observations_moved = overlap_merge_observations(source)};
     const auto occupied_before =
         static_cast<int64_t>(target.occupancy().num_occupied_voxels() + source.occupancy().num_occupied_voxels());
-    const MergeReport r = merge_into(target, source, target_info.T_world_submap.inverse() * source_info.T_world_submap);
+    const MergeReport r = merge_into(target, source, target_info.T_world_submap.inverse() * source_info.T_world_submap, sessions);
     a.observations_dropped_free = r.counts_dropped_free;
     a.observations_clipped = r.counts_before - r.counts_after - r.counts_dropped_free;
     a.semantic_voxels_removed = r.semantic_entries_before - r.semantic_entries_after;

@@ -9,12 +9,14 @@
 // session's time range is the union of its submaps' ranges, and extending a submap's range by a
 // later drive's stamps would make the earlier drive seem to last until then. The voxels hold
 // every contributing session's evidence; which sessions went into which submap is reported
-// (SubmapAbsorption). Neither a submap's list of sessions nor a per-voxel "last observed"
-// session is stored yet (docs/multi-session-design.md).
+// (SubmapAbsorption), and each voxel keeps the newest session that observed it (its semantic
+// entry's last-observed session: the newer of the two by SessionOrder). A submap's list of
+// sessions is not stored yet (docs/multi-session-design.md).
 #include <cstdint>
 #include <utility>
 #include <vector>
 
+#include "slamvdb/map/session_info.hpp"
 #include "slamvdb/map/submap.hpp"
 
 namespace slamvdb::sessions {
@@ -43,7 +45,9 @@ struct OverlapMergeOptions {
 // (ties: the lower index); absorbed submaps leave `submaps`. Submaps are visited in their order,
 // which must be deterministic (merge_session_maps: the merged ids). Submaps of one session are
 // never merged with each other here (that is the loop closer's decision, made while mapping).
+// `sessions` says which session is newer (the merged map's sessions' time ranges).
 std::vector<SubmapAbsorption> merge_overlapping_sessions(std::vector<std::pair<SubmapInfo, VoxelMap>>& submaps,
-                                                         const OverlapMergeOptions& options);
+                                                         const OverlapMergeOptions& options,
+                                                         const SessionOrder& sessions = {});
 
 }  // namespace slamvdb::sessions

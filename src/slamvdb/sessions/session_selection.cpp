@@ -39,4 +39,24 @@ SessionSelection keep_sessions(SemanticMap& map, const std::vector<std::string>&
   return out;
 }
 
+LastObservedSelection keep_last_observed(SemanticMap& map, const std::vector<std::string>& names) {
+  const std::set<int> ids = session_ids_named(map.info(), names);
+  const std::optional<int> active = map.active_submap_id();
+  LastObservedSelection out;
+  for (const SubmapInfo& s : map.submaps()) {
+    if (s.id == active) continue;
+    auto [info, voxels] = map.remove_finished_submap(s.id);
+    SemanticLayer& layer = voxels.semantics();
+    std::vector<VoxelKey> others;
+    layer.for_each([&](SemanticLayer::Handle h) {
+      if (!ids.contains(layer.session_of(h))) others.push_back(layer.key_of(h));
+    });
+    for (const VoxelKey& k : others) layer.erase(k);
+    out.semantic_voxels_removed += others.size();
+    out.semantic_voxels_kept += layer.size();
+    map.add_finished_submap(info, std::move(voxels));
+  }
+  return out;
+}
+
 }  // namespace slamvdb::sessions

@@ -23,4 +23,15 @@ struct SessionSelection {
 // before removing anything.
 SessionSelection keep_sessions(SemanticMap& map, const std::vector<std::string>& names);
 
+struct LastObservedSelection {
+  std::size_t semantic_voxels_kept = 0, semantic_voxels_removed = 0;
+};
+
+// What changed between drives (`export --last-session NAME[,NAME]`): removes the semantic entry
+// of every voxel whose last-observing session (SemanticLayer::session_of) is not one of those
+// named; the occupancy stays (the other voxels are context). With a later drive named, what is
+// left is what that drive saw again or saw first; with an earlier one, what no later drive saw
+// again. Finished submaps only. Throws Error as session_ids_named, before changing anything.
+LastObservedSelection keep_last_observed(SemanticMap& map, const std::vector<std::string>& names);
+
 }  // namespace slamvdb::sessions

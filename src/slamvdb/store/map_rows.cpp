@@ -50,7 +50,8 @@ CREATE TABLE submaps(id INTEGER PRIMARY KEY NOT NULL, pose BLOB NOT NULL, time_b
 CREATE TABLE occupancy(submap INTEGER NOT NULL, bx INTEGER NOT NULL, by INTEGER NOT NULL, bz INTEGER NOT NULL,
   log_odds BLOB NOT NULL, crc INTEGER NOT NULL);
 CREATE TABLE semantics(submap INTEGER NOT NULL, chunk INTEGER NOT NULL, keys BLOB NOT NULL, counts BLOB NOT NULL,
-  embeddings BLOB NOT NULL, crc INTEGER NOT NULL, stats BLOB NOT NULL, stats_crc INTEGER NOT NULL);
+  embeddings BLOB NOT NULL, crc INTEGER NOT NULL, stats BLOB NOT NULL, stats_crc INTEGER NOT NULL, sessions BLOB,
+  sessions_crc INTEGER);
 CREATE TABLE sessions(id INTEGER PRIMARY KEY NOT NULL, name TEXT NOT NULL, source TEXT NOT NULL, robot TEXT NOT NULL,
   time_begin REAL, time_end REAL, crc INTEGER NOT NULL);
 CREATE TABLE submap_sessions(submap INTEGER NOT NULL, session INTEGER NOT NULL, crc INTEGER NOT NULL,
@@ -126,8 +127,8 @@ PayloadBytes write_submap_voxels(Database& db, const Submap& submap, EmbeddingPr
   const int64_t id = submap.id();
   Statement occ(db, "INSERT INTO occupancy(submap, bx, by, bz, log_odds, crc) VALUES(?, ?, ?, ?, ?, ?)");
   Statement sem(db,
-                "INSERT INTO semantics(submap, chunk, keys, counts, embeddings, crc, stats, stats_crc) "
-                "VALUES(?, ?, ?, ?, ?, ?, ?, ?)");
+                "INSERT INTO semantics(submap, chunk, keys, counts, embeddings, crc, stats, stats_crc, sessions, "
+                "sessions_crc) VALUES(?, ?, ?, ?, ?, ?, ?, ?, ?, ?)");
   return encode_submap_payload(
       submap, precision,
       [&](const OccupancyRow& r) {
@@ -135,7 +136,10 @@ PayloadBytes write_submap_voxels(Database& db, const Submap& submap, EmbeddingPr
       },
       [&](const SemanticChunkRow& r) {
         sem.bind(1, id).bind(2, r.chunk).bind(3, r.keys).bind(4, r.counts).bind(5, r.embeddings);
-        sem.bind(6, r.crc).bind(7, r.stats).bind(8, r.stats_crc).insert();
+        sem.bind(6, r.crc).bind(7, r.stats).bind(8, r.stats_crc);
+        if (r.sessions.empty()) sem.bind_null(9).bind_null(10);
+        else sem.bind(9, r.sessions).bind(10, r.sessions_crc);
+        sem.insert();
       });
 }
 
@@ -151,17 +155,35 @@ OccupancyGrid read_submap_occupancy(Database& db, int version, const SubmapSumma
 SemanticLayer read_submap_semantics(Database& db, int version, const SubmapSummary& summary, const MapParams& params) {
   const int64_t id = summary.info.id;
   SemanticChunkReader reader(id, version, params);
-  Statement sem(db, version >= 3   ? "SELECT keys, counts, embeddings, crc, chunk, stats, stats_crc FROM semantics "
+  Statement sem(db, version >= 5   ? "SELECT keys, counts, embeddings, crc, chunk, stats, stats_crc, sessions, "
+                                     "sessions_crc FROM semantics WHERE submap = ? ORDER BY chunk"
+                    : version >= 3 ? "SELECT keys, counts, embeddings, crc, chunk, stats, stats_crc FROM semantics "
                                      "WHERE submap = ? ORDER BY chunk"
                     : version >= 2 ? "SELECT keys, counts, embeddings, crc, chunk FROM semantics WHERE submap = ? ORDER BY chunk"
                                    : "SELECT keys, counts, embeddings, crc FROM semantics WHERE submap = ? ORDER BY rowid");
   sem.bind(1, id);
   while (sem.step()) {
     const std::optional<int64_t> chunk = version >= 2 ? std::optional(sem.int64(4)) : std::nullopt;
-    if (version >= 3) reader.add(chunk, sem.blob(0), sem.blob(1), sem.blob(2), sem.int64(3), sem.blob(5), sem.int64(6));
+    if (version >= 5)
+      reader.add(chunk, sem.blob(0), sem.blob(1), sem.blob(2), sem.int64(3), sem.blob(5), sem.int64(6),
+                 sem.is_null(7) ? std::nullopt : std::optional(sem.blob(7)),
+                 sem.is_null(8) ? std::nullopt : std::optional(sem.int64(8)));
+    else if (version >= 3) reader.add(chunk, sem.blob(0), sem.blob(1), sem.blob(2), sem.int64(3), sem.blob(5), sem.int64(6));
     else reader.add(chunk, sem.blob(0), sem.blob(1), sem.blob(2), sem.int64(3), {}, 0);
   }
   return reader.finish(summary);
+}
+
+void check_entry_sessions(const SemanticLayer& layer, int submap, const std::vector<SessionInfo>& sessions) {
+  std::optional<uint16_t> unknown;
+  layer.for_each([&](SemanticLayer::Handle h) {
+    const uint16_t s = layer.stored_session_of(h);
+    if (unknown || s == SemanticLayer::kOwnSession) return;
+    if (std::none_of(sessions.begin(), sessions.end(), [&](const SessionInfo& i) { return i.id == s; })) unknown = s;
+  });
+  if (unknown)
+    throw Error(fmt::format("a semantic voxel of submap {} was last observed in session {}, which the file does not list",
+                            submap, *unknown));
 }
 
 void check_no_orphan_rows(Database& db) {

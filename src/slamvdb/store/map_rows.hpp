@@ -60,5 +60,8 @@ SemanticLayer read_submap_semantics(Database& db, int format_version, const Subm
                                     const MapParams& params);
 // Rows that name a submap the submaps table does not have.
 void check_no_orphan_rows(Database& db);
+// Throws Error naming the submap and session when an entry of `layer` was last observed in a
+// session that `sessions` (the file's) does not list.
+void check_entry_sessions(const SemanticLayer& layer, int submap, const std::vector<SessionInfo>& sessions);
 
 }  // namespace slamvdb::store

@@ -37,15 +37,18 @@ std::vector<SessionInfo> sessions_to_write(const MapInfo& info, const std::vecto
   for (SessionInfo& s : sessions) {
     if (s.name.empty()) throw Error(fmt::format("session {} has no name", s.id));
     if (!by_id.emplace(s.id, &s).second) throw Error(fmt::format("session id {} is listed twice", s.id));
-    s.time = {};  // from its submaps, so that it stays true after crops and merges
   }
+  // From its submaps, so that it stays true after crops and merges; a session left with none (its
+  // submaps merged into another session's) keeps the range it had: which drive is newer (a
+  // voxel's last-observed session) depends on it.
+  std::map<int, TimeRange> of_submaps;
   for (const SubmapSummary& submap : submaps) {
-    const auto it = by_id.find(submap.info.session);
-    if (it == by_id.end())
+    if (!by_id.contains(submap.info.session))
       throw Error(fmt::format("submap {} belongs to session {}, which the map does not list", submap.info.id,
                               submap.info.session));
-    it->second->time.extend(submap.info.time_range);
+    of_submaps[submap.info.session].extend(submap.info.time_range);
   }
+  for (auto& [id, time] : of_submaps) by_id.at(id)->time = time;
   return sessions;
 }
 

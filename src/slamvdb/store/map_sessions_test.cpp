@@ -1,5 +1,6 @@
 // Sessions in the map file (format version 4): written and read back, old files read as one
 // session named after the file, damaged session rows refused with their name.
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 
 #include <string>
@@ -51,7 +52,7 @@ TEST_F(MapStoreTest, SessionsRoundTrip) {
   const fs::path path = dir_ / "site.svdb";
   save_map(path, two_session_map());
   const MapFileSummary s = read_map_summary(path);
-  EXPECT_EQ(s.format_version, 4);
+  EXPECT_EQ(s.format_version, kMapFormatVersion);
   expect_two_sessions(s.info.sessions);
   ASSERT_EQ(s.submaps.size(), 2u);
   EXPECT_EQ(s.submaps[0].info.id, -7);
@@ -100,10 +101,10 @@ TEST_F(MapStoreTest, AVersion3FileLoadsAsOneSessionNamedAfterTheFile) {
   const SemanticMap loaded = load_map(path);
   expect_identical(map, loaded);
   for (const SubmapInfo& info : loaded.submaps()) EXPECT_EQ(info.session, 0);
-  // Saved again, it is a version 4 file that keeps the name.
+  // Saved again, it is a current file that keeps the name.
   save_map(dir_ / "upgraded.svdb", loaded);
   const MapFileSummary upgraded = read_map_summary(dir_ / "upgraded.svdb");
-  EXPECT_EQ(upgraded.format_version, 4);
+  EXPECT_EQ(upgraded.format_version, kMapFormatVersion);
   ASSERT_EQ(upgraded.info.sessions.size(), 1u);
   EXPECT_EQ(upgraded.info.sessions[0].name, "tuesday");
 }
@@ -111,12 +112,13 @@ TEST_F(MapStoreTest, AVersion3FileLoadsAsOneSessionNamedAfterTheFile) {
 TEST_F(MapStoreTest, ANewerFormatIsRefusedNamingBothVersions) {
   const fs::path path = dir_ / "future.svdb";
   save_map(path, make_map(EmbeddingPrecision::kFloat16, 16, 7));
-  exec_sql(path, "PRAGMA user_version = 5;");
+  exec_sql(path, fmt::format("PRAGMA user_version = {};", kMapFormatVersion + 1));
   try {
     read_map_summary(path);
     FAIL() << "a newer format was read";
   } catch (const Error& e) {
-    EXPECT_NE(std::string(e.what()).find("map format version 5 is newer than this slamvdb supports (4)"),
+    EXPECT_NE(std::string(e.what()).find(fmt::format("map format version {} is newer than this slamvdb supports ({})",
+                                                      kMapFormatVersion + 1, kMapFormatVersion)),
               std::string::npos) << e.what();
   }
 }

@@ -193,6 +193,7 @@ SemanticMap load_map(const fs::path& path) {
       else layers[task / 2].emplace(read_submap_semantics(*reader, summary.format_version, s, summary.params));
     });
     SemanticMap map(summary.params, summary.info);
+    for (std::size_t i = 0; i < n; ++i) check_entry_sessions(*layers[i], summary.submaps[i].info.id, summary.info.sessions);
     for (std::size_t i = 0; i < n; ++i)
       map.add_finished_submap(summary.submaps[i].info,
                               VoxelMap(summary.params, std::move(*grids[i]), std::move(*layers[i])));

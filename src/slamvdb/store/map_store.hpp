@@ -4,20 +4,23 @@
 // row checked by CRC32 on load, every value checked for meaning (finite, rigid poses, keys inside
 // the representable extent, no duplicates, rows of existing submaps). Saving is atomic.
 //
-// Schema, format version 4 (PRAGMA application_id = kMapApplicationId, user_version = version):
+// Schema, format version 5 (PRAGMA application_id = kMapApplicationId, user_version = version):
 //   meta(key TEXT PRIMARY KEY, value TEXT, crc)                 parameters, info, totals
 //   submaps(id PRIMARY KEY, pose BLOB 16 doubles column-major, time_begin, time_end (NULL when
 //           empty), path_length, blocks, known_voxels, occupied_voxels, semantic_voxels, crc)
 //   occupancy(submap, bx, by, bz, log_odds BLOB, crc)        one row per 8^3 block: 512 floats, zlib
 //   semantics(submap, chunk, keys BLOB n x 3 int32, counts BLOB n uint32,
 //             embeddings BLOB n x dim fp16|fp32, crc,     up to kSemanticChunkEntries per row
-//             stats BLOB n x (weight, spread) float32, stats_crc)   the observation statistics
+//             stats BLOB n x (weight, spread) float32, stats_crc,   the observation statistics
+//             sessions BLOB n uint16 (65535: the submap's own), sessions_crc)   each voxel's
+//             last-observing session; both NULL when every entry of the chunk is the submap's own
 //   sessions(id PRIMARY KEY, name, source, robot TEXT, time_begin, time_end (NULL when empty), crc)
 //   submap_sessions(submap, session, crc, PRIMARY KEY(submap, session))   one row per submap today
 //   indexes on occupancy(submap) and semantics(submap, chunk): submaps are read one by one.
 //   meta also records the fusion rule ("fusion"), the feature source ("features") and, for the
 //   single-view baseline, "semantic_single_view".
-// Version 3 (no sessions: it loads as one session named after the file, MapInfo::sessions),
+// Version 4 (no per-voxel sessions: every voxel was last observed by its submap's session),
+// version 3 (no sessions: it loads as one session named after the file, MapInfo::sessions),
 // version 2 (no statistics: they load as unknown, "confidence unknown", with weight = count) and
 // version 1 (one submap, no time range, no chunk column, no indexes) still load.
 // All numbers in blobs are little-endian; a crc covers its row's integer columns and blobs.
@@ -30,7 +33,7 @@
 
 namespace slamvdb {
 
-inline constexpr int kMapFormatVersion = 4;
+inline constexpr int kMapFormatVersion = 5;
 inline constexpr int32_t kMapApplicationId = 0x53564442;  // "SVDB"
 inline constexpr std::size_t kSemanticChunkEntries = 4096;
 

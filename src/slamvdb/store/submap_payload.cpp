@@ -140,6 +140,7 @@ PayloadBytes encode_submap_payload(const Submap& submap, EmbeddingPrecision prec
   std::vector<int32_t> keys;
   std::vector<uint32_t> counts;
   std::vector<VoxelStatistics> stats;
+  std::vector<uint16_t> sessions;
   std::vector<std::byte> embeddings;
   std::vector<float> row(dim);
   for (std::size_t begin = 0, chunk = 0; begin < entries.size(); begin += kSemanticChunkEntries, ++chunk) {
@@ -147,6 +148,8 @@ PayloadBytes encode_submap_payload(const Submap& submap, EmbeddingPrecision prec
     keys.resize(3 * n);
     counts.resize(n);
     stats.resize(n);
+    sessions.resize(n);
+    bool other_sessions = false;
     embeddings.resize(n * dim * value_bytes);
     for (std::size_t j = 0; j < n; ++j) {
       const SemanticLayer::Handle h = entries[begin + j];
@@ -154,6 +157,8 @@ PayloadBytes encode_submap_payload(const Submap& submap, EmbeddingPrecision prec
       keys[3 * j] = k.x(), keys[3 * j + 1] = k.y(), keys[3 * j + 2] = k.z();
       counts[j] = layer.count_of(h);
       stats[j] = layer.statistics_of(h);
+      sessions[j] = layer.stored_session_of(h);
+      other_sessions = other_sessions || sessions[j] != SemanticLayer::kOwnSession;
       std::byte* dst = embeddings.data() + j * dim * value_bytes;
       if (layer.precision() == precision) {
         std::memcpy(dst, layer.embedding_of(h).data, dim * value_bytes);
@@ -170,6 +175,11 @@ PayloadBytes encode_submap_payload(const Submap& submap, EmbeddingPrecision prec
     payload.semantics += out.keys.size() + out.counts.size() + out.embeddings.size() + out.stats.size();
     out.crc = Crc().add(id).add(out.chunk).add(out.keys).add(out.counts).add(out.embeddings).value();
     out.stats_crc = Crc().add(id).add(out.chunk).add(out.stats).value();
+    if (other_sessions) {  // else NULL: a map of one session pays nothing
+      out.sessions = bytes_of(sessions);
+      out.sessions_crc = Crc().add(id).add(out.chunk).add(out.sessions).value();
+      payload.semantics += out.sessions.size();
+    }
     semantic_row(out);
   }
   return payload;
@@ -219,7 +229,9 @@ SemanticChunkReader::SemanticChunkReader(int64_t submap_id, int format_version, 
 
 void SemanticChunkReader::add(std::optional<int64_t> chunk_number, std::span<const std::byte> key_bytes,
                               std::span<const std::byte> count_bytes, std::span<const std::byte> embedding_blob,
-                              int64_t stored_crc, std::span<const std::byte> stats_bytes, int64_t stored_stats_crc) {
+                              int64_t stored_crc, std::span<const std::byte> stats_bytes, int64_t stored_stats_crc,
+                              std::optional<std::span<const std::byte>> session_bytes,
+                              std::optional<int64_t> stored_sessions_crc) {
   const int64_t id = id_, chunk = next_chunk_++;
   const auto dim = static_cast<std::size_t>(params_.dim);
   const EmbeddingPrecision precision = params_.precision;
@@ -265,8 +277,24 @@ void SemanticChunkReader::add(std::optional<int64_t> chunk_number, std::span<con
         throw Error(fmt::format("semantic chunk {} of submap {} holds impossible statistics (weight {}, spread {})",
                                 chunk, id, st.weight, st.spread));
   }
+  sessions_.clear();  // stays empty before version 5 or when NULL: every entry is the submap's own
+  if (session_bytes.has_value() != stored_sessions_crc.has_value())
+    throw Error(fmt::format("semantic chunk {} of submap {} has last-observed sessions without their CRC or a CRC "
+                            "without sessions: the file is corrupt",
+                            chunk, id));
+  if (version_ >= 5 && session_bytes) {
+    if (Crc().add(id).add(chunk).add(*session_bytes).value() != *stored_sessions_crc)
+      throw Error(fmt::format("CRC mismatch in the last-observed sessions of semantic chunk {} of submap {}: the file "
+                              "is corrupt",
+                              chunk, id));
+    if (session_bytes->size() != n * sizeof(uint16_t))
+      throw Error(fmt::format("semantic chunk {} of submap {} has last-observed sessions for {} bytes, expected {}",
+                              chunk, id, session_bytes->size(), n * sizeof(uint16_t)));
+    sessions_.resize(n);
+    std::memcpy(sessions_.data(), session_bytes->data(), session_bytes->size());
+  }
   try {
-    layer_.insert_raw(keys_, counts_, embedding_blob.data(), stats_);
+    layer_.insert_raw(keys_, counts_, embedding_blob.data(), stats_, sessions_);
   } catch (const Error& e) {
     throw Error(fmt::format("semantic chunk {} of submap {}: {}", chunk, id, e.what()));
   }

@@ -24,11 +24,16 @@ struct OccupancyRow {
   int64_t crc = 0;
 };
 // Up to kSemanticChunkEntries semantic voxels: keys (3 x int32), counts (uint32), embeddings
-// (the storage precision), statistics; CRCs over submap id, chunk number and the blobs.
+// (the storage precision), statistics; CRCs over submap id, chunk number and the blobs. From
+// format 5, each entry's last-observing session (n uint16, SemanticLayer::kOwnSession for the
+// submap's own) when any entry of the chunk names another session, with its CRC; else empty
+// (NULL in the database: every entry is the submap's own).
 struct SemanticChunkRow {
   int64_t chunk = 0;
   std::span<const std::byte> keys, counts, embeddings, stats;
   int64_t crc = 0, stats_crc = 0;
+  std::span<const std::byte> sessions;
+  int64_t sessions_crc = 0;  // meaningful when sessions is not empty
 };
 
 // Encodes `submap`'s rows in key order (the same map always gives the same rows), handing each to
@@ -62,8 +67,11 @@ class OccupancyRowReader {
 class SemanticChunkReader {
  public:
   SemanticChunkReader(int64_t submap_id, int format_version, const MapParams& params);
+  // sessions / sessions_crc: nullopt when NULL (or before format 5); one without the other is damage.
   void add(std::optional<int64_t> chunk_number, std::span<const std::byte> keys, std::span<const std::byte> counts,
-           std::span<const std::byte> embeddings, int64_t crc, std::span<const std::byte> stats, int64_t stats_crc);
+           std::span<const std::byte> embeddings, int64_t crc, std::span<const std::byte> stats, int64_t stats_crc,
+           std::optional<std::span<const std::byte>> sessions = std::nullopt,
+           std::optional<int64_t> sessions_crc = std::nullopt);
   SemanticLayer finish(const SubmapSummary& summary);
 
  private:
@@ -76,6 +84,7 @@ class SemanticChunkReader {
   std::vector<int32_t> raw_keys_;
   std::vector<uint32_t> counts_;
   std::vector<VoxelStatistics> stats_;
+  std::vector<uint16_t> sessions_;
 };
 
 }  // namespace slamvdb::store
