@@ -56,7 +56,6 @@ synth::SynthConfig two_drive_config(bool other) {
   c.image_width = 320;
   c.image_height = 200;
   c.lidar.columns = test_size(512, 256);
-  c.lidar.max_range = 50.0;  // the places reach 35 m: farther returns only cost time
   if (other) {
     c.start_offset_m = two_drives_other_start();
     c.reverse = true;
@@ -110,7 +109,6 @@ SemanticMap map_two_drives_drive(const Sequence& sequence, const Pose& T_world_f
   const Trajectory trajectory(std::move(stamps), std::move(poses));
   PipelineOptions options;
   options.map.semantic.dim = two_drives_encoder().dim;
-  options.map.occupancy.max_point_range = 45.0;  // `map --max-range 45`: submaps of the places' reach
   options.poses = &trajectory;
   EncoderFeatureSource features(std::make_unique<SimulatedDenseEncoder>(two_drives_encoder()),
                                 EncoderFeatureSource::Input::kLabels);
@@ -291,7 +289,9 @@ TEST_F(TwoDrives, AlignRecoversTheRelativePoseAndTheMergedMapMatchesTheTruth) {
 // apart must not give a false alignment: aligned at the true pose, or refused as ambiguous. And a
 // drive through the off-road scene (another seed: nothing in common) is refused. Its own drives,
 // not TwoDrives' (a suite's set-up runs again in every gtest shard that draws one of its tests).
-TEST(TwoDriveLookAlikes, GiveNoFalseAlignmentAndAnotherSceneIsRefused) {
+// DISABLED: written in session s35 but not yet run once (the machine's build queue left no time);
+// enable it after a first run (--gtest_also_run_disabled_tests) has checked its refusal reasons.
+TEST(TwoDriveLookAlikes, DISABLED_GiveNoFalseAlignmentAndAnotherSceneIsRefused) {
   const auto geometry_only = [](synth::SynthConfig c) {
     c.length_m = test_size(100.0, 70.0);
     c.image_width = c.image_height = 16;  // the images are not used
