@@ -31,6 +31,7 @@ struct Options {
   std::string image_size = "640x400";
   bool force = false;
   bool perfect_rig = false;
+  int64_t noise_seed = 0;  // with --noise-seed only
   std::string format = "folder";
   McapOutputOptions mcap;
 };
@@ -50,6 +51,7 @@ void parse_image_size(const std::string& text, synth::SynthConfig& config) {
 // Usage errors (exit code 2) before the world is built: the image size, and the output's size
 // against the free space where it goes.
 void check_synth_options(Options& opt, const CLI::App& cmd) {
+  if (cmd.count("--noise-seed") > 0) opt.config.noise_seed = static_cast<uint64_t>(opt.noise_seed);
   if (opt.perfect_rig) {
     for (const char* option : {"--rig-translation-error", "--rig-rotation-error", "--rig-time-offset"})
       if (cmd.count(option) > 0) usage_error(fmt::format("--perfect-rig sets the rig errors to 0: it cannot go with {}", option));
@@ -139,6 +141,21 @@ void add(CLI::App& root) {
   cmd->add_option("--min-loop", opt->config.min_loop_m,
                   "Shortest loop built (metres); a loop longer than --length is never revisited")
       ->capture_default_str();
+  // Several drives over one scene (issue 23): the same --seed and --loop-length, each drive its own
+  // --start-offset, direction and --noise-seed.
+  cmd->add_option("--loop-length", opt->config.loop_length_m,
+                  "The loop's perimeter in metres (0: from --length and --min-loop); fix it to drive one scene twice "
+                  "with different lengths")
+      ->capture_default_str()
+      ->check(finite_range(0, bounds::kMaxSynthLength));
+  cmd->add_option("--start-offset", opt->config.start_offset_m, "Start the drive this many metres along the loop")
+      ->capture_default_str()
+      ->check(finite_range(0, bounds::kMaxSynthLength));
+  cmd->add_flag("--reverse", opt->config.reverse, "Drive the loop clockwise (the scene is the same)");
+  cmd->add_option("--noise-seed", opt->noise_seed,
+                  "Seed of the SIMULATED sensor noise, camera jitter and rig errors (default: --seed, which keeps "
+                  "fixing the scene and the loop)")
+      ->check(integer_range(0, bounds::kMaxSeed));
   cmd->add_option("--lidar-columns", opt->config.lidar.columns,
                   "Simulated LiDAR columns per turn (1024; 2048 gives full-size 131k-point OS1-64 scans)")
       ->capture_default_str()

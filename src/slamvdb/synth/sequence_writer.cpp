@@ -107,6 +107,10 @@ nlohmann::json config_json(const SynthConfig& c) {
           {"speed_mps", c.speed_mps},
           {"revisit_overlap_m", c.revisit_overlap_m},
           {"min_loop_m", c.min_loop_m},
+          {"loop_length_m", c.loop_length_m},
+          {"start_offset_m", c.start_offset_m},
+          {"reverse", c.reverse},
+          {"noise_seed", c.sensor_seed()},
           {"sensor_height_m", c.sensor_height_m},
           {"lidar_rate_hz", c.lidar_rate_hz},
           {"camera_rate_hz", c.camera_rate_hz},
@@ -190,8 +194,8 @@ SynthSummary write_synthetic_sequence(const SynthConfig& config, const fs::path&
       const SimulatedScan scan =
           swept ? simulate_swept_scan(*world.scene, config.lidar, rays,
                                       [&](double t) { return world.T_world_lidar(stamp + t); }, config.lidar_sweep_s,
-                                      config.seed, task, config.keep_no_return)
-                : simulate_scan(*world.scene, config.lidar, rays, world.scan_poses[task], config.seed, task,
+                                      config.sensor_seed(), task, config.keep_no_return)
+                : simulate_scan(*world.scene, config.lidar, rays, world.scan_poses[task], config.sensor_seed(), task,
                                 config.keep_no_return);
       const std::string stem = fmt::format("{:06d}", task);
       if (swept) {

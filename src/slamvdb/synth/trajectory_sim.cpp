@@ -93,14 +93,21 @@ Eigen::AlignedBox2d LoopPath::bounds() const {
 }
 
 SimulatedTrajectory::SimulatedTrajectory(LoopPath path, std::shared_ptr<const Terrain> terrain, double speed,
-                                         double sensor_height)
-    : path_(std::move(path)), terrain_(std::move(terrain)), speed_(speed), sensor_height_(sensor_height) {}
+                                         double sensor_height, double start_offset, bool reverse)
+    : path_(std::move(path)),
+      terrain_(std::move(terrain)),
+      speed_(speed),
+      sensor_height_(sensor_height),
+      start_offset_(start_offset),
+      direction_(reverse ? -1.0 : 1.0) {}
 
 double SimulatedTrajectory::lateral_offset(double s) const { return 0.8 * std::sin(kTwoPi * s / 75.0); }
 
 Pose SimulatedTrajectory::T_world_body(double elapsed) const {
+  // Distance driven -> arc length on the loop (the identity for a drive from the start, forward).
+  const auto loop_s = [&](double driven) { return start_offset_ + direction_ * driven; };
   const double s = speed_ * elapsed;
-  auto ground_point = [&](double si) { return path_.at(si, lateral_offset(si)); };
+  auto ground_point = [&](double si) { return path_.at(loop_s(si), lateral_offset(loop_s(si))); };
   const Eigen::Vector2d xy = ground_point(s);
   constexpr double h = 0.05;
   const Eigen::Vector2d fwd = (ground_point(s + h) - ground_point(s - h)).normalized();

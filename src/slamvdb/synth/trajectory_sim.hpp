@@ -41,7 +41,9 @@ class SimulatedTrajectory {
  public:
   // LiDAR `sensor_height` above the ground, mounted turned 180 degrees about z (x backwards) as
   // RELLIS-3D's Ouster is; the body follows the terrain's roll and pitch over its footprint.
-  SimulatedTrajectory(LoopPath path, std::shared_ptr<const Terrain> terrain, double speed, double sensor_height);
+  // The drive starts `start_offset` metres along the loop and, when `reverse`, drives it clockwise.
+  SimulatedTrajectory(LoopPath path, std::shared_ptr<const Terrain> terrain, double speed, double sensor_height,
+                      double start_offset = 0.0, bool reverse = false);
 
   // Ground truth T_world_lidar at `elapsed` seconds after the start.
   Pose T_world_lidar(double elapsed) const;
@@ -49,11 +51,12 @@ class SimulatedTrajectory {
 
  private:
   Pose T_world_body(double elapsed) const;  // x forward, y left, z up, origin on the ground
-  double lateral_offset(double s) const;    // the driver's weave within the trail
+  double lateral_offset(double s) const;    // the driver's weave within the trail, at loop arc length s
 
   LoopPath path_;
   std::shared_ptr<const Terrain> terrain_;
   double speed_, sensor_height_;
+  double start_offset_ = 0.0, direction_ = 1.0;  // loop arc length = start + direction x distance driven
 };
 
 }  // namespace slamvdb::synth

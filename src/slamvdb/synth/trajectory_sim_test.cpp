@@ -117,6 +117,39 @@ TEST(SynthTrajectory, DefaultDriveSeesEveryClass) {
   EXPECT_EQ(seen, expected);
 }
 
+// Two drives over one scene (issue 23): the same seed and loop length give the same scene and
+// trail whatever the drives' lengths; a drive can start anywhere on the loop, drive it clockwise,
+// and draw its own sensor noise and rig errors.
+TEST(SynthTrajectory, SecondDriveOnTheSameLoopStartsElsewhereAndDrivesItBackwards) {
+  SynthConfig forward;
+  forward.loop_length_m = 200.0;
+  forward.length_m = 80.0;
+  SynthConfig back = forward;
+  back.length_m = 60.0;
+  back.start_offset_m = 70.0;
+  back.reverse = true;
+  back.noise_seed = 9;
+  const SynthWorld a = build_synthetic_world(forward), b = build_synthetic_world(back);
+  EXPECT_EQ(a.trajectory.path().perimeter(), 200.0);
+  EXPECT_EQ(b.trajectory.path().perimeter(), 200.0);
+  ASSERT_EQ(a.scene->objects().size(), b.scene->objects().size()) << "one scene";
+  for (std::size_t i = 0; i < a.scene->objects().size(); i += 7)
+    EXPECT_EQ(a.scene->objects()[i].bounds().min(), b.scene->objects()[i].bounds().min());
+  // B starts 70 m along A's trail and drives towards A's start, facing the other way.
+  const double speed = forward.speed_mps;
+  const Pose a_at_70 = a.trajectory.T_world_lidar(70.0 / speed), b_start = b.scan_poses.front();
+  EXPECT_LT((a_at_70.translation() - b_start.translation()).norm(), 1e-6);
+  EXPECT_LT(a_at_70.linear().col(0).dot(b_start.linear().col(0)), -0.99);
+  const Pose a_at_30 = a.trajectory.T_world_lidar(30.0 / speed), b_after_40 = b.trajectory.T_world_lidar(40.0 / speed);
+  EXPECT_LT((a_at_30.translation() - b_after_40.translation()).norm(), 1e-6);
+  // Its own noise: the rig error differs (drawn from noise_seed), the default is the seed.
+  EXPECT_GT((a.T_lidar_camera_true.translation() - b.T_lidar_camera_true.translation()).norm(), 1e-3);
+  EXPECT_EQ(forward.sensor_seed(), forward.seed);
+  EXPECT_EQ(back.sensor_seed(), 9u);
+  back.loop_length_m = 30.0;
+  EXPECT_THROW(build_synthetic_world(back), Error);
+}
+
 TEST(SynthTrajectory, BadSettingsAreRejectedWithTheirName) {
   SynthConfig config;
   config.speed_mps = -1.0;

@@ -41,6 +41,10 @@ void SynthConfig::validate() const {
           fmt::format("rig rotation error {} deg must be in [0, 10]", rig_rotation_error_deg));
   require(std::isfinite(rig_time_offset_s) && std::abs(rig_time_offset_s) <= 0.1,
           fmt::format("rig time offset {} s must be within +-0.1 s", rig_time_offset_s));
+  require(std::isfinite(loop_length_m) && (loop_length_m == 0.0 || loop_length_m >= 60.0),
+          fmt::format("loop length {} m must be 0 (from the length) or >= 60 m", loop_length_m));
+  require(std::isfinite(start_offset_m) && start_offset_m >= 0.0,
+          fmt::format("start offset {} m must be >= 0", start_offset_m));
   require(repeat_spacing_m >= 10.0, fmt::format("repeat spacing {} m must be >= 10", repeat_spacing_m));
   require(std::isfinite(lidar_sweep_s) && lidar_sweep_s >= 0.0 && lidar_sweep_s <= 1.0 / lidar_rate_hz,
           fmt::format("LiDAR sweep {} s must be in [0, the scan period {} s]", lidar_sweep_s, 1.0 / lidar_rate_hz));
@@ -52,7 +56,7 @@ namespace {
 // The nominal extrinsic moved by the configured errors: a translation of the given length and a
 // rotation by the given angle, about and along directions drawn from the seed.
 Pose true_T_lidar_camera(const Pose& nominal, const SynthConfig& config) {
-  Rng rng(config.seed, Stream::kRigError, 0);
+  Rng rng(config.sensor_seed(), Stream::kRigError, 0);
   const auto direction = [&] {
     Vec3d d;
     do d = Vec3d(rng.gaussian(), rng.gaussian(), rng.gaussian());
@@ -69,15 +73,19 @@ Pose true_T_lidar_camera(const Pose& nominal, const SynthConfig& config) {
 
 }  // namespace
 
+double SynthConfig::loop_perimeter() const {
+  return loop_length_m > 0.0 ? loop_length_m : std::max(length_m - revisit_overlap_m, min_loop_m);
+}
+
 SynthWorld build_synthetic_world(const SynthConfig& config) {
   config.validate();
-  const double perimeter = std::max(config.length_m - config.revisit_overlap_m, config.min_loop_m);
-  LoopPath path(perimeter, config.seed);
+  LoopPath path(config.loop_perimeter(), config.seed);
   auto scene = std::make_shared<const Scene>(config.scene == SceneKind::kRepeatedPlaces
                                                  ? build_repeated_places_scene(path, config.seed, config.repeat_spacing_m)
                                                  : build_offroad_scene(path, config.seed));
   std::shared_ptr<const Terrain> terrain(scene, &scene->terrain());
-  SimulatedTrajectory trajectory(std::move(path), terrain, config.speed_mps, config.sensor_height_m);
+  SimulatedTrajectory trajectory(std::move(path), terrain, config.speed_mps, config.sensor_height_m,
+                                 config.start_offset_m, config.reverse);
   SynthWorld world{config,
                    scene,
                    std::move(trajectory),
@@ -103,7 +111,7 @@ SynthWorld build_synthetic_world(const SynthConfig& config) {
   // resolution), never on a scan stamp, always within the scans' time span.
   const double first = world.scan_stamps.front(), last = world.scan_stamps.back();
   for (std::size_t k = 0;; ++k) {
-    Rng rng(config.seed, Stream::kCameraJitter, k);
+    Rng rng(config.sensor_seed(), Stream::kCameraJitter, k);
     const double stamp = first + config.camera_offset_s + static_cast<double>(k) / config.camera_rate_hz +
                          rng.uniform(-config.camera_jitter_s, config.camera_jitter_s);
     int64_t ms = std::llround(stamp * 1000.0);

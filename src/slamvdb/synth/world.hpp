@@ -4,6 +4,7 @@
 // the pipeline can use it directly.
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <vector>
 
 #include "slamvdb/fusion/camera_model.hpp"
@@ -26,6 +27,15 @@ struct SynthConfig {
   double speed_mps = 5.0;
   double revisit_overlap_m = 25.0;  // the loop closes after length - overlap; the drive goes on past its start
   double min_loop_m = 120.0;        // shortest loop built, so short test drives still see a full scene
+  // Several drives over one scene (issue 23): `seed` fixes the scene and the loop's shape; these
+  // place a drive on the loop. All at their defaults, a sequence is what it was before them.
+  double loop_length_m = 0.0;   // the loop's perimeter; 0: max(length - revisit overlap, min loop)
+  double start_offset_m = 0.0;  // arc length along the loop where the drive starts
+  bool reverse = false;         // drive the loop clockwise (the trail and the scene unchanged)
+  // The LiDAR noise, the camera jitter and the rig errors; unset: `seed` (the scene's).
+  std::optional<uint64_t> noise_seed;
+  uint64_t sensor_seed() const { return noise_seed.value_or(seed); }
+  double loop_perimeter() const;
   double sensor_height_m = 1.5;
   double lidar_rate_hz = 10.0;
   double camera_rate_hz = 5.0;

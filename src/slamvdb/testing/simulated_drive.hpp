@@ -34,7 +34,7 @@ inline SimulatedDrive simulate_drive(const synth::SynthConfig& config, std::size
   const std::vector<Vec3d> rays = config.lidar.ray_directions();
   tbb::parallel_for(std::size_t{0}, drive.scans.size(), [&](std::size_t k) {
     const synth::SimulatedScan s =
-        synth::simulate_scan(*w.scene, config.lidar, rays, drive.T_world_sensor[k], config.seed, first + k, false);
+        synth::simulate_scan(*w.scene, config.lidar, rays, drive.T_world_sensor[k], config.sensor_seed(), first + k, false);
     drive.scans[k].reserve(s.points.size());
     for (const auto& p : s.points) drive.scans[k].push_back(p.head<3>());
   });
