@@ -41,6 +41,7 @@ std::shared_ptr<SemanticMap> budget_map(int side) {
 
 QuerySet two_directions() {
   QuerySet q;
+  q.model_id = "test-space";
   q.names = {"first", "second"};
   q.vectors = QueryMatrix::Zero(2, 512);
   q.vectors(0, 0) = q.vectors(1, 1) = 1;
