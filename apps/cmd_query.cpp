@@ -10,6 +10,7 @@
 #include "option_checks.hpp"
 #include "map_source_options.hpp"
 #include "region_options.hpp"
+#include "image_encoder_option.hpp"
 #include "text_encoder_option.hpp"
 #include "slamvdb/core/csv.hpp"
 #include "slamvdb/core/point_text.hpp"
@@ -101,29 +102,9 @@ Eigen::VectorXf build_query(const Options& opt, const SemanticMap& map) {
   read_vectors(opt.vectors, terms.vectors);
   read_vectors(opt.not_vectors, terms.not_vectors);
   if (!opt.images.empty()) {
-    std::unique_ptr<ImageEncoder> image_encoder;
-    bool labels = false;
-    if (!opt.image_model.empty()) {
-#if SLAMVDB_WITH_TORCH
-      image_encoder = std::make_unique<TorchImageEncoder>(opt.image_model);
-#else
-      throw Error("this slamvdb was built without TorchScript support (SLAMVDB_WITH_TORCH=OFF)");
-#endif
-    } else {
-      SimulatedEncoderConfig sim;
-      sim.dim = map.params().semantic.dim;
-      sim.seed = opt.sim_seed;
-      image_encoder = std::make_unique<SimulatedImageEncoder>(sim);
-      labels = true;
-      spdlog::warn("--image is embedded by the SIMULATED image encoder from its 2D label image (use --image-model "
-                   "for a network on RGB)");
-    }
+    const auto image_encoder = open_image_encoder(opt.image_model, map.params().semantic.dim, opt.sim_seed);
     check_space("the image encoder", image_encoder->model_id(), map, opt.ignore_model_id);
-    for (const auto& file : opt.images) {
-      ImageRecord rec;
-      (labels ? rec.labels : rec.rgb) = file;
-      terms.vectors.push_back(to_vector(image_encoder->encode(load_image_frame(rec, !labels, labels))));
-    }
+    for (const auto& file : opt.images) terms.vectors.push_back(to_vector(image_encoder->embed_file(file)));
   }
   QueryTermSources sources;
   sources.embed_text = encoder ? &embed_text : nullptr;

@@ -11,6 +11,7 @@
 #include "command_registry.hpp"
 #include "io_options.hpp"
 #include "option_checks.hpp"
+#include "image_encoder_option.hpp"
 #include "serve_access.hpp"
 #include "text_encoder_option.hpp"
 #include "slamvdb/server/http_server.hpp"
@@ -19,14 +20,15 @@ namespace slamvdb::cli::cmd_serve {
 namespace {
 
 struct Options {
-  std::string map, bind = "127.0.0.1", queries, text_model, token_file, tls_cert, tls_key;
+  std::string map, bind = "127.0.0.1", queries, text_model, image_model, token_file, tls_cert, tls_key;
   int port = 8080;
   uint64_t sim_seed = 1;
   float sim_text_gap = 0.f;
-  bool ignore_model_id = false, no_void_rule = false, no_text = false, insecure_no_auth = false;
+  bool ignore_model_id = false, no_void_rule = false, no_text = false, no_image = false, insecure_no_auth = false;
   ServerLimits limits;
   std::vector<std::string> costs;  // NAME=COST of the navigation grid
   std::size_t ann_min_cells = 200000;  // maps this large get an ANN index for top-k queries
+  int64_t time_budget_ms = 10000;      // ServerLimits::time_budget
 };
 
 void run(const Options& opt) {
@@ -39,6 +41,21 @@ void run(const Options& opt) {
     auto encoder = open_text_encoder(opt.text_model, map->space().dim, opt.sim_seed, opt.sim_text_gap);
     text = std::make_unique<TextEmbeddingCache>(std::move(encoder), opt.text_model.empty());
     check_text_space(text->info(), map->space(), opt.ignore_model_id);
+  }
+  std::shared_ptr<QueryImageEncoder> image;
+  if (!opt.no_image) {
+    image = open_image_encoder(opt.image_model, map->space().dim, opt.sim_seed);
+    // An encoder of another space answers nothing meaningful. One asked for is an error; the
+    // default SIMULATED one on a map of another space is left out (image questions are refused),
+    // so that serving a CLIP map needs no new option.
+    if (!opt.ignore_model_id && image->model_id() != map->space().model_id) {
+      const std::string why = fmt::format("the image encoder embeds into '{}' but the map is in '{}'", image->model_id(),
+                                          map->space().model_id);
+      if (!opt.image_model.empty())
+        throw Error(why + " (use the encoder the map was built with, or --ignore-model-id if they are the same space)");
+      spdlog::warn("{}: image questions are refused (give --image-model)", why);
+      image.reset();
+    }
   }
   std::optional<QuerySet> queries;
   if (!opt.queries.empty()) {
@@ -58,12 +75,14 @@ void run(const Options& opt) {
   options.bind = opt.bind;
   options.port = opt.port;
   options.limits = opt.limits;
+  options.limits.time_budget = std::chrono::milliseconds(opt.time_budget_ms);
   options.classify.void_to_second_best = !opt.no_void_rule;
   options.model_check = opt.ignore_model_id ? ModelIdCheck::kIgnore : ModelIdCheck::kRequireMatch;
   options.queries_name = opt.queries;
   options.token = token;
   options.tls_cert = opt.tls_cert;
   options.tls_key = opt.tls_key;
+  options.image_encoder = image;
   MapServer server(map, std::move(text), std::move(queries), options);
 
   // SIGINT / SIGTERM end the server cleanly (serve_access.hpp). Installed before the address is
@@ -112,6 +131,15 @@ void add(CLI::App& root) {
   cmd->add_option("--text-model", opt->text_model, "TorchScript CLIP text encoder (default: the SIMULATED one)")
       ->check(CLI::ExistingFile);
   cmd->add_flag("--no-text", opt->no_text, "Load no text encoder (text questions are refused)");
+  cmd->add_option("--image-model", opt->image_model,
+                  "TorchScript CLIP image encoder of POST /api/query \"image\" (default: the SIMULATED one, which "
+                  "reads a 2D label image), as query --image-model")
+      ->check(CLI::ExistingFile);
+  cmd->add_flag("--no-image", opt->no_image, "Load no image encoder (image questions are refused)");
+  cmd->add_option("--max-image-pixels", opt->limits.max_image_pixels,
+                  "Most pixels of a query image (from its PNG / JPEG header, before decoding); more: 400")
+      ->capture_default_str()
+      ->check(integer_range(1, 100'000'000));
   cmd->add_option("--sim-seed", opt->sim_seed, "Seed of the simulated text encoder (as for `map`)")
       ->capture_default_str()
       ->check(integer_range(0, bounds::kMaxSeed));
@@ -150,6 +178,11 @@ void add(CLI::App& root) {
   cmd->add_option("--rate-burst", opt->limits.rate_burst, "Requests a client address may send at once (with --rate-limit)")
       ->capture_default_str()
       ->check(finite_range(1.0, 1e6));
+  cmd->add_option("--time-budget", opt->time_budget_ms,
+                  "Milliseconds one answer may take (query, at, classes, nav-grid, points); the work stops once they "
+                  "have passed and the request gets 503 naming this option; 0: no limit")
+      ->capture_default_str()
+      ->check(integer_range(0, 86'400'000));
   cmd->add_option("--ann-min-cells", opt->ann_min_cells,
                   "Maps with at least this many semantic voxels get an approximate nearest-neighbour index for top-k "
                   "queries, built in the background after start (queries are exact until it is ready; answers say "
@@ -166,6 +199,7 @@ void add(CLI::App& root) {
   io->input("map", opt->map);
   io->input("--queries", opt->queries);
   io->input("--text-model", opt->text_model);
+  io->input("--image-model", opt->image_model);
   io->input("--token", opt->token_file);
   io->input("--tls-cert", opt->tls_cert);
   io->input("--tls-key", opt->tls_key);

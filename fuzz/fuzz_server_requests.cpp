@@ -8,7 +8,8 @@
 // 1..max_text_bytes bytes, with a region only when one was asked. Anything else is a POST /api/query
 // body for a 4-d map: decoded or refused; a decoded one must hold what the limits promise: at most
 // max_terms terms, texts within max_text_bytes, vectors of the map's dimension with finite values,
-// top_k within 1..max_top_k.
+// top_k within 1..max_top_k, images (base64 "image" terms, decode_base64) non-empty and never more
+// bytes than three quarters of the body. decode_base64 alone on the input: bounded the same way.
 #include <cmath>
 #include <cstdlib>
 #include <string>
@@ -90,6 +91,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     fuzz_get_params(body);
     return 0;
   }
+  if (const auto bytes = slamvdb::decode_base64(body); bytes && bytes->size() > body.size() * 3 / 4) std::abort();
   slamvdb::ServerLimits limits;
   limits.max_terms = 8;
   limits.max_text_bytes = 64;
@@ -97,9 +99,11 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   try {
     const slamvdb::QueryRequest r = slamvdb::decode_query_request(body, 4, limits);
     const auto& t = r.terms;
-    const std::size_t terms = t.text.size() + t.not_text.size() + t.classes.size() + t.not_classes.size() +
-                              t.vectors.size() + t.not_vectors.size();
-    if (terms > limits.max_terms || !t.has_positive()) std::abort();
+    const std::size_t terms = r.images.size() + t.text.size() + t.not_text.size() + t.classes.size() +
+                              t.not_classes.size() + t.vectors.size() + t.not_vectors.size();
+    if (terms > limits.max_terms || (!t.has_positive() && r.images.empty())) std::abort();
+    for (const std::string& image : r.images)
+      if (image.empty() || image.size() > body.size() * 3 / 4) std::abort();
     for (const auto* texts : {&t.text, &t.not_text, &t.classes, &t.not_classes})
       for (const auto& s : *texts)
         if (s.empty() || s.size() > limits.max_text_bytes) std::abort();

@@ -134,6 +134,7 @@ int main(int argc, char** argv) {
   seed("server_requests", "text", R"({"text": ["tall grass", "dirt"], "not": "puddle", "top_k": 7})");
   seed("server_requests", "vector", R"({"vector": [[1, 0, 0, 0], [0, 1, 0.5, 0]], "not_vector": [0, 0, 1, 0], "top_k": 0, "threshold": 0.25, "exact": true})");
   seed("server_requests", "class", R"({"class": "smooth", "not_class": ["rough"], "threshold": -0.5})");
+  seed("server_requests", "image", R"({"image": ["iVBORw0KGgoAAAANSUhEUgAAAAEAAAABCAAAAAA6fptVAAAACklEQVR4nGNgAAAAAgAB4iG8MwAAAABJRU5ErkJggg==", "data:image/png;base64,/9j/4AAQSkZJRg"], "text": "grass", "top_k": 3})");
   seed("server_requests", "classes", "?bbox=-2,-2,-1,2,2,1&min_confidence=0.5");
   seed("server_requests", "nav_grid", "?near=0,0&radius=3&resolution=0.5&format=png&robot_height=1.2&min_confidence=0.1");
   seed("server_requests", "points", "?bbox=-2,-2,-1,2,2,1&lod=2&limit=5000&query=tall%20grass");

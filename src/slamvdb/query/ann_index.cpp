@@ -161,7 +161,7 @@ AnnIndex::AnnIndex(const SemanticMap& map, const AnnOptions& options) : impl_(st
 AnnIndex::~AnnIndex() = default;
 
 std::vector<std::size_t> AnnIndex::candidates(std::span<const float> unit_query, std::size_t probes,
-                                              std::size_t top_k, std::size_t* scanned) const {
+                                              std::size_t top_k, std::size_t* scanned, const Deadline& deadline) const {
   const Impl& m = *impl_;
   if (unit_query.size() != m.dim)
     throw Error(fmt::format("the ANN index is {}-d, the query {}-d", m.dim, unit_query.size()));
@@ -198,6 +198,7 @@ std::vector<std::size_t> AnnIndex::candidates(std::span<const float> unit_query,
   int32_t scores[kChunk];
   std::size_t count = 0;
   for (std::size_t r = 0; r < lists && (r < wanted || count < top_k); ++r) {
+    deadline.check("scanning the ANN index's lists");
     const std::size_t begin = m.list_begin[order[r]], end = m.list_begin[order[r] + 1];
     count += end - begin;
     for (std::size_t c = begin; c < end; c += kChunk) {

@@ -15,6 +15,7 @@
 #include <span>
 #include <vector>
 
+#include "slamvdb/core/deadline.hpp"
 #include "slamvdb/map/semantic_map.hpp"
 
 namespace slamvdb {
@@ -55,8 +56,9 @@ class AnnIndex {
   // (dim floats, norm 1): of the cells of the `probes` (0: the default) most similar lists (more
   // lists while they hold fewer than `top_k` cells), the re-rank count best by their codes. In
   // ascending position (the order the global index holds them). `scanned`: codes scored.
+  // `deadline` is checked before each list: once it passes, DeadlineExceeded is thrown.
   std::vector<std::size_t> candidates(std::span<const float> unit_query, std::size_t probes, std::size_t top_k,
-                                      std::size_t* scanned = nullptr) const;
+                                      std::size_t* scanned = nullptr, const Deadline& deadline = {}) const;
   // Cells of the global index the index was built over (its size then).
   std::size_t index_size() const;
   AnnIndexStats stats() const;

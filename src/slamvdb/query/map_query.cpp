@@ -87,7 +87,8 @@ std::vector<ScoredCell> similarity_search(const SemanticMap& map, std::span<cons
       if (options.ann->index_size() != index.size())
         throw Error(fmt::format("the ANN index was built over {} cells but the map now has {}: build it again",
                                 options.ann->index_size(), index.size()));
-      candidates = options.ann->candidates(std::span<const float>(q.data(), dim), options.ann_probes, options.top_k);
+      candidates = options.ann->candidates(std::span<const float>(q.data(), dim), options.ann_probes, options.top_k,
+                                           nullptr, options.deadline);
     }
     const bool listed = options.region || approximate;
     const std::size_t n = listed ? candidates.size() : index.size();
@@ -97,6 +98,7 @@ std::vector<ScoredCell> similarity_search(const SemanticMap& map, std::span<cons
     };
     tbb::enumerable_thread_specific<Local> locals([&] { return Local{TopK(options.top_k), std::vector<float>(dim)}; });
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, kGrain), [&](const auto& range) {
+      options.deadline.check("scoring the map's cells");  // per chunk of at most kGrain cells
       Local& local = locals.local();
       for (std::size_t k = range.begin(); k != range.end(); ++k) {
         const std::size_t i = listed ? candidates[k] : k;
@@ -147,7 +149,7 @@ namespace {
 // map's rows of the same cells.
 std::vector<ClassifiedCell> classify_index_cells(const GlobalIndex& index, const QueryClassifier& classifier,
                                                  std::size_t dim, const std::vector<std::size_t>* positions,
-                                                 const SessionOrder& sessions) {
+                                                 const SessionOrder& sessions, const Deadline& deadline) {
   const std::size_t total = positions ? positions->size() : index.size();
   std::vector<ClassifiedCell> out(total);
   constexpr std::size_t kBatch = 256;
@@ -162,6 +164,7 @@ std::vector<ClassifiedCell> classify_index_cells(const GlobalIndex& index, const
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, total, kBatch), [&](const auto& range) {
     Local& local = locals.local();
     for (std::size_t begin = range.begin(); begin < range.end(); begin += kBatch) {
+      deadline.check("classifying the map's cells");
       const std::size_t n = std::min(kBatch, range.end() - begin);
       // Entries are read where the submaps store them (fp16); a cell shared by two submaps is
       // combined in registers, only cells of three or more get their mean written out.
@@ -212,7 +215,7 @@ std::vector<ClassifiedCell> classify_map(const SemanticMap& map, const QuerySet&
   std::vector<ClassifiedCell> out;
   map.read_index([&](const GlobalIndex& index) {
     out = classify_index_cells(index, classifier, static_cast<std::size_t>(map.params().semantic.dim), nullptr,
-                               SessionOrder(map.info().sessions));
+                               SessionOrder(map.info().sessions), options.deadline);
   });
   return out;
 }
@@ -225,7 +228,7 @@ std::vector<ClassifiedCell> classify_region(const SemanticMap& map, const QueryS
   map.read_index([&](const GlobalIndex& index) {
     const std::vector<std::size_t> inside = cells_of_region(index, region);  // as similarity_search finds them
     out = classify_index_cells(index, classifier, static_cast<std::size_t>(map.params().semantic.dim), &inside,
-                               SessionOrder(map.info().sessions));
+                               SessionOrder(map.info().sessions), options.deadline);
   });
   return out;
 }
@@ -253,6 +256,7 @@ std::vector<PointQuery> query_points(const SemanticMap& map, std::span<const Vec
   map.read_index([&](const GlobalIndex& index) {
     std::vector<float> scratch(dim);
     for (std::size_t i = 0; i < points_world.size(); ++i) {
+      if (i % 1024 == 0) options.deadline.check("looking up points");
       PointQuery& q = out[i];
       q.point_world = points_world[i];
       if (!points_world[i].allFinite()) continue;

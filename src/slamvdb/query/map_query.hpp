@@ -10,6 +10,7 @@
 #include <string>
 #include <vector>
 
+#include "slamvdb/core/deadline.hpp"
 #include "slamvdb/map/semantic_map.hpp"
 #include "slamvdb/query/query_classifier.hpp"
 #include "slamvdb/query/query_region.hpp"
@@ -43,6 +44,9 @@ struct SearchOptions {
   // with a threshold or a region always scan every cell they concern. Null: exact.
   const AnnIndex* ann = nullptr;
   std::size_t ann_probes = 0;  // lists the index looks at (0: its default)
+  // Checked between chunks of cells (and of the index's lists): once it passes, the search stops
+  // and throws DeadlineExceeded (serve's --time-budget). Default: never.
+  Deadline deadline{};
 };
 
 // Whether similarity_search answers `options` through options.ann.

@@ -10,6 +10,7 @@
 #include <span>
 #include <vector>
 
+#include "slamvdb/core/deadline.hpp"
 #include "slamvdb/core/embedding_kernels.hpp"
 #include "slamvdb/query/query_set.hpp"
 
@@ -28,6 +29,10 @@ struct QueryMatch {
 struct ClassifyOptions {
   bool void_to_second_best = true;  // the paper's rule; off: void classes can win
   bool portable_kernel = false;     // force the plain Eigen kernel (tests and benchmarks compare)
+  // For the map-wide questions that classify (classify_map / classify_region / query_points):
+  // checked between batches of cells or points; once it passes they throw DeadlineExceeded
+  // (serve's --time-budget). The classifier itself ignores it. Default: never.
+  Deadline deadline{};
 };
 
 class QueryClassifier {

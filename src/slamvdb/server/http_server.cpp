@@ -15,6 +15,7 @@
 #include <limits>
 #include <thread>
 
+#include "slamvdb/core/deadline.hpp"
 #include "slamvdb/server/client_rate_limit.hpp"
 #include "slamvdb/server/httplib_include.hpp"
 #include "slamvdb/server/nav_grid_answer.hpp"
@@ -47,9 +48,10 @@ using JsonRoute = std::function<void(const httplib::Request&, httplib::Response&
 // ours (500 with a generic message, logged, never a stack trace to the client), and every answer
 // counted under the route's pattern.
 httplib::Server::Handler guarded(ServerMetrics& metrics, std::string route, std::size_t max_in_flight,
-                                 JsonRoute handler, ClientRateLimit* rate = nullptr) {
-  return [&metrics, route = std::move(route), max_in_flight, handler = std::move(handler), rate](const httplib::Request& req,
-                                                                                                httplib::Response& res) {
+                                 JsonRoute handler, ClientRateLimit* rate = nullptr,
+                                 std::chrono::microseconds budget = std::chrono::microseconds(0)) {
+  return [&metrics, route = std::move(route), max_in_flight, handler = std::move(handler), rate,
+          budget](const httplib::Request& req, httplib::Response& res) {
     const auto start = std::chrono::steady_clock::now();
     // A client over its rate (client_rate_limit.hpp) is refused before it counts as in flight.
     if (const auto over = rate ? rate->admit(req.remote_addr) : ClientRateLimit::Decision{}; !over.admitted) {
@@ -69,6 +71,15 @@ httplib::Server::Handler guarded(ServerMetrics& metrics, std::string route, std:
       } else {
         try {
           handler(req, res);
+        } catch (const DeadlineExceeded& e) {
+          // 503, not 504: 504 says a gateway got no timely answer from an upstream server; here the
+          // origin server itself declines to spend more than its budget on one answer (the work is
+          // stopped), a refusal of capacity as --max-concurrent's. No Retry-After: the same request
+          // may exceed the budget again; a smaller one (region, top_k, points) fits.
+          send_error(res, 503, fmt::format("{}: this server answers within {} ms (--time-budget); ask for less (a "
+                                           "smaller region, top_k or fewer points) or try again when it is less busy",
+                                           e.what(), std::chrono::duration_cast<std::chrono::milliseconds>(budget).count()));
+          metrics.record_time_budget_exceeded(route);
         } catch (const RequestError& e) {
           send_error(res, e.status(), e.what(), e.field());
         } catch (const std::exception& e) {
@@ -129,6 +140,12 @@ struct MapServer::Impl {
 
   void add_routes();
   std::string metrics_text() const;
+  // The context of one answer whose map-wide loops stop once the time budget has passed.
+  AnswerContext within_budget() const {
+    AnswerContext c = context;
+    c.classify.deadline = Deadline::after(options.limits.time_budget);
+    return c;
+  }
 };
 
 std::string MapServer::Impl::metrics_text() const {
@@ -178,13 +195,14 @@ void MapServer::Impl::add_routes() {
        [this](const httplib::Request&, httplib::Response& res) { send_json(res, 200, answer_submaps(context)); }},
       {"/api/at", "POST", limit,
        [this](const httplib::Request& req, httplib::Response& res) {
-         send_json(res, 200, answer_at(context, decode_at_request(req.body, options.limits)));
+         const AtRequest request = decode_at_request(req.body, options.limits);
+         send_json(res, 200, answer_at(within_budget(), request));
        }},
       {"/api/classes", "GET", limit,
        [this](const httplib::Request& req, httplib::Response& res) {
          const GetParams params(req, "GET /api/classes", {"bbox", "near", "radius", "min_confidence"});
          const ClassesRequest request = decode_classes_request(params.region(), params.get("min_confidence"));
-         send_json(res, 200, answer_classes(context, request, options.limits.max_cells));
+         send_json(res, 200, answer_classes(within_budget(), request, options.limits.max_cells));
        }},
       {"/api/nav-grid", "GET", limit,
        [this](const httplib::Request& req, httplib::Response& res) {
@@ -193,7 +211,7 @@ void MapServer::Impl::add_routes() {
          const NavGridRequest request = decode_nav_grid_request({params.region(), params.get("resolution"),
                                                                  params.get("format"), params.get("robot_height"),
                                                                  params.get("min_confidence")});
-         NavGridAnswer answer = answer_nav_grid(context, request, options.limits.max_cells);
+         NavGridAnswer answer = answer_nav_grid(within_budget(), request, options.limits.max_cells);
          res.status = 200;
          res.set_content(std::move(answer.body), answer.content_type);
        }},
@@ -220,11 +238,12 @@ void MapServer::Impl::add_routes() {
              {params.region(), params.get("lod"), params.get("limit"), params.get("query"), params.get("submap")},
              options.limits);
          res.status = 200;
-         res.set_content(answer_points(context, request), "application/octet-stream");
+         res.set_content(answer_points(within_budget(), request), "application/octet-stream");
        }},
       {"/api/query", "POST", limit,
        [this](const httplib::Request& req, httplib::Response& res) {
-         const QueryRequest request = decode_query_request(req.body, map->space().dim, options.limits);
+         QueryRequest request = decode_query_request(req.body, map->space().dim, options.limits);
+         request.search.deadline = Deadline::after(options.limits.time_budget);
          send_json(res, 200, answer_query(context, request));
        }},
   };
@@ -236,7 +255,7 @@ void MapServer::Impl::add_routes() {
     const auto handler_for = [&](const std::string& method) {
       return guarded(metrics, r.path, method == r.method ? r.max_in_flight : kAlways,
                      method == r.method ? r.handler : refuse,
-                     method == r.method && r.max_in_flight != kAlways ? rate.get() : nullptr);
+                     method == r.method && r.max_in_flight != kAlways ? rate.get() : nullptr, options.limits.time_budget);
     };
     http->Get(r.path, handler_for("GET"));
     http->Post(r.path, handler_for("POST"));
@@ -312,6 +331,8 @@ MapServer::MapServer(std::shared_ptr<const MapService> map, std::unique_ptr<Text
   c.nav_costs = o.nav_costs;
   c.classify = o.classify;
   c.model_check = o.model_check;
+  c.image = o.image_encoder.get();
+  c.max_image_pixels = o.limits.max_image_pixels;
   impl_->add_routes();
 }
 

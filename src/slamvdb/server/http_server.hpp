@@ -23,6 +23,9 @@ struct ServerOptions {
   std::string token;
   // TLS (both or neither): PEM files of the certificate (chain) and its private key.
   std::string tls_cert, tls_key;
+  // The encoder of POST /api/query "image" terms, chosen by the command as `query --image` chooses
+  // it (a network, or the SIMULATED one on label images); null: image questions are refused.
+  std::shared_ptr<QueryImageEncoder> image_encoder;
 };
 
 class MapServer {

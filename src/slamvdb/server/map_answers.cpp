@@ -61,6 +61,19 @@ nlohmann::json answer_query(const AnswerContext& context, const QueryRequest& re
       throw RequestError(400, "text", e.what());
     }
   };
+  // Images are positive vector terms, embedded as `query --image` embeds a file (io/query_image.hpp).
+  QueryTerms terms = request.terms;
+  if (!request.images.empty() && !context.image)
+    throw RequestError(400, "image", "this server has no image encoder");
+  for (std::size_t i = 0; i < request.images.size(); ++i) {
+    std::vector<float> v;
+    try {
+      v = context.image->embed_bytes(request.images[i], fmt::format("'image'[{}]", i), context.max_image_pixels);
+    } catch (const Error& e) {
+      throw RequestError(400, "image", e.what());  // not a PNG / JPEG, damaged, too many pixels, not label ids
+    }
+    terms.vectors.push_back(Eigen::Map<const Eigen::VectorXf>(v.data(), static_cast<Eigen::Index>(v.size())));
+  }
   QueryTermSources sources;
   sources.embed_text = context.text ? &embed_text : nullptr;
   sources.queries = context.queries;
@@ -68,11 +81,12 @@ nlohmann::json answer_query(const AnswerContext& context, const QueryRequest& re
   sources.model_check = context.model_check;
   Eigen::VectorXf q;
   try {
-    q = build_query_vector(space, request.terms, sources);
+    q = build_query_vector(space, terms, sources);
   } catch (const RequestError&) {
     throw;
   } catch (const Error& e) {
-    throw RequestError(400, map_answers_detail::field_of_terms(request.terms), e.what());
+    const bool images_only = !request.images.empty() && !request.terms.uses_classes() && !request.terms.uses_text();
+    throw RequestError(400, images_only ? "image" : map_answers_detail::field_of_terms(request.terms), e.what());
   }
   // `not` terms move the question away from the cells the index groups: they are scored exactly.
   const bool exact = request.exact || !request.terms.not_text.empty() || !request.terms.not_classes.empty() ||
@@ -100,7 +114,7 @@ nlohmann::json answer_query(const AnswerContext& context, const QueryRequest& re
     }
     rows.push_back(std::move(row));
   }
-  return {{"encoder", encoder_json(context)},
+  nlohmann::json answer = {{"encoder", encoder_json(context)},
           {"semantic_cells", context.map->semantic_cells()},
           {"top_k", request.top_k_capped ? 0 : request.search.top_k},
           {"threshold", std::isfinite(request.search.threshold) ? nlohmann::json(request.search.threshold) : nlohmann::json()},
@@ -109,6 +123,10 @@ nlohmann::json answer_query(const AnswerContext& context, const QueryRequest& re
           {"region", map_answers_detail::region_json(request.search.region)},
           {"count", results.size()},
           {"results", std::move(rows)}};
+  // Which encoder embedded the images (SIMULATED: from a 2D label image), as "encoder" says for text.
+  if (!request.images.empty())
+    answer["image_encoder"] = {{"model_id", context.image->model_id()}, {"simulated", context.image->reads_labels()}};
+  return answer;
 }
 
 nlohmann::json answer_at(const AnswerContext& context, const AtRequest& request) {
@@ -154,6 +172,8 @@ nlohmann::json answer_classes(const AnswerContext& context, const ClassesRequest
     cells = context.map->classes(queries, request.region, context.classify, context.model_check);
   } catch (const RequestError&) {
     throw;
+  } catch (const DeadlineExceeded&) {
+    throw;  // the time budget: 503 (http_server.cpp), not the 400 below
   } catch (const Error& e) {
     throw RequestError(400, "", e.what());  // the query set does not fit the map (its checks' message)
   }

@@ -6,6 +6,7 @@
 #include <optional>
 #include <string>
 
+#include "slamvdb/io/query_image.hpp"
 #include "slamvdb/query/query_set.hpp"
 #include "slamvdb/server/map_service.hpp"
 #include "slamvdb/server/request_decoding.hpp"
@@ -23,6 +24,10 @@ struct AnswerContext {
   ClassifyOptions classify{};
   ModelIdCheck model_check = ModelIdCheck::kRequireMatch;
   std::vector<std::string> nav_costs;  // CLASS=COST overrides of the navigation grid (serve --cost)
+  // The image encoder of "image" terms (null: they are refused), as `query --image` embeds a file,
+  // and the most pixels an image may have.
+  QueryImageEncoder* image = nullptr;
+  std::int64_t max_image_pixels = ServerLimits{}.max_image_pixels;
 };
 
 // The region an answer was limited to, as the request gives it (null: the whole map).

@@ -65,6 +65,8 @@ NavGridAnswer answer_nav_grid(const AnswerContext& context, const NavGridRequest
     throw RequestError(404, region_field(request.region), e.what());
   } catch (const RequestError&) {
     throw;
+  } catch (const DeadlineExceeded&) {
+    throw;  // the time budget: 503 (http_server.cpp), not the 400 below
   } catch (const Error& e) {
     throw RequestError(400, "", e.what());  // the query set does not fit the map (its checks' message)
   }

@@ -71,6 +71,8 @@ std::string answer_points(const AnswerContext& context, const PointsQuery& reque
     throw RequestError(413, "limit", e.what());
   } catch (const RequestError&) {
     throw;
+  } catch (const DeadlineExceeded&) {
+    throw;  // the time budget: 503 (http_server.cpp), not the 400 below
   } catch (const Error& e) {
     throw RequestError(400, "", e.what());  // the query set or question does not fit the map (its checks' message)
   }

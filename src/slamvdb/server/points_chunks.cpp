@@ -113,6 +113,7 @@ PointChunks collect_point_chunks(const SemanticMap& map, const PointsRequest& re
     out.values = PointChunks::Values::kScore;
     SearchOptions search;
     search.region = region;
+    search.deadline = source.classify.deadline;  // the answer's time budget (serve --time-budget)
     const auto q = std::span<const float>(source.query->data(), static_cast<std::size_t>(source.query->size()));
     for (const ScoredCell& c : similarity_search(map, q, search)) cell_values[c.cell] = c.score;
   } else if (source.queries) {

@@ -87,7 +87,62 @@ QueryRegion region_of(const nlohmann::json& v) {
   }
 }
 
+// "image": one base64 string or an array of them, each decoded to its bytes.
+std::vector<std::string> image_list(const nlohmann::json& v) {
+  std::vector<std::string> out;
+  const auto add = [&](const nlohmann::json& s, std::size_t i) {
+    if (!s.is_string())
+      throw RequestError(400, "image", fmt::format("'image'[{}] holds a {}, not a base64 string", i, s.type_name()));
+    std::optional<std::string> bytes = decode_base64(s.get_ref<const std::string&>());
+    if (!bytes) throw RequestError(400, "image", fmt::format("'image'[{}] is not base64 (RFC 4648, standard alphabet)", i));
+    if (bytes->empty()) throw RequestError(400, "image", fmt::format("'image'[{}] is empty", i));
+    out.push_back(std::move(*bytes));
+  };
+  if (v.is_array()) {
+    for (std::size_t i = 0; i < v.size(); ++i) add(v[i], i);
+  } else {
+    add(v, 0);
+  }
+  return out;
+}
+
 }  // namespace request_decoding_detail
+
+std::optional<std::string> decode_base64(std::string_view text) {
+  if (text.rfind("data:", 0) == 0) {  // a data URL: what a browser's FileReader gives
+    const auto comma = text.find(',');
+    if (comma == std::string_view::npos || comma < 7 || text.substr(comma - 7, 7) != ";base64") return std::nullopt;
+    text.remove_prefix(comma + 1);
+  }
+  std::size_t padding = 0;
+  while (padding < 2 && !text.empty() && text.back() == '=') text.remove_suffix(1), ++padding;
+  if (text.size() % 4 == 1 || (padding && (text.size() + padding) % 4 != 0)) return std::nullopt;
+  const auto value = [](char c) -> int {
+    if (c >= 'A' && c <= 'Z') return c - 'A';
+    if (c >= 'a' && c <= 'z') return c - 'a' + 26;
+    if (c >= '0' && c <= '9') return c - '0' + 52;
+    if (c == '+') return 62;
+    if (c == '/') return 63;
+    return -1;
+  };
+  std::string out;
+  out.reserve(text.size() / 4 * 3 + 2);
+  uint32_t bits = 0;
+  int held = 0;
+  for (const char c : text) {
+    const int v = value(c);
+    if (v < 0) return std::nullopt;
+    bits = (bits << 6) | static_cast<uint32_t>(v);
+    held += 6;
+    if (held >= 8) {
+      held -= 8;
+      out.push_back(static_cast<char>((bits >> held) & 0xFF));
+    }
+  }
+  // What is left of the last group must be zero bits (a canonical encoding).
+  if ((bits & ((1u << held) - 1)) != 0) return std::nullopt;
+  return out;
+}
 
 nlohmann::json error_json(const std::string& message, const std::string& field) {
   return {{"error", {{"message", message}, {"field", field.empty() ? nlohmann::json() : nlohmann::json(field)}}}};
@@ -112,7 +167,7 @@ QueryRequest decode_query_request(std::string_view body, int dim, const ServerLi
   using namespace request_decoding_detail;
   const nlohmann::json j = parse_json_object(body);
   static const std::set<std::string> known = {"text",       "not",   "class",     "not_class", "vector",
-                                              "not_vector", "top_k", "threshold", "exact", "region"};
+                                              "not_vector", "top_k", "threshold", "exact", "region", "image"};
   for (const auto& [key, value] : j.items())
     if (!known.count(key)) throw RequestError(400, key, fmt::format("unknown field '{}'", key));
   QueryRequest r;
@@ -122,12 +177,13 @@ QueryRequest decode_query_request(std::string_view body, int dim, const ServerLi
   if (j.contains("not_class")) r.terms.not_classes = string_list(j["not_class"], "not_class", limits);
   if (j.contains("vector")) r.terms.vectors = vector_list(j["vector"], "vector", dim);
   if (j.contains("not_vector")) r.terms.not_vectors = vector_list(j["not_vector"], "not_vector", dim);
-  const std::size_t terms = r.terms.text.size() + r.terms.not_text.size() + r.terms.classes.size() +
+  if (j.contains("image")) r.images = image_list(j["image"]);
+  const std::size_t terms = r.images.size() + r.terms.text.size() + r.terms.not_text.size() + r.terms.classes.size() +
                             r.terms.not_classes.size() + r.terms.vectors.size() + r.terms.not_vectors.size();
   if (terms > limits.max_terms)
     throw RequestError(400, "", fmt::format("{} query terms; at most {}", terms, limits.max_terms));
-  if (!r.terms.has_positive())
-    throw RequestError(400, "text", "give a positive term: text, class or vector ('not' terms only subtract)");
+  if (!r.terms.has_positive() && r.images.empty())
+    throw RequestError(400, "text", "give a positive term: text, class, vector or image ('not' terms only subtract)");
   if (j.contains("threshold")) {
     const auto& t = j["threshold"];
     if (!t.is_number() || !(t.get<double>() >= -1.0 && t.get<double>() <= 1.0))

@@ -3,6 +3,7 @@
 // structs, so that a libFuzzer harness (fuzz/fuzz_server_requests.cpp, next session) reaches them
 // without a socket. Anything wrong is a RequestError naming the field, answered 400 (or the
 // status it carries); nothing here trusts a size, a depth or a number from the request.
+#include <chrono>
 #include <cstddef>
 #include <nlohmann/json.hpp>
 #include <optional>
@@ -33,6 +34,14 @@ struct ServerLimits {
   // with 429 + Retry-After before any work (/healthz and /metrics are not counted). 0: no limit.
   double rate_per_client = 100;
   double rate_burst = 200;
+  // Time one answer may take (--time-budget, in ms on the command line; 0: none). The scoring and
+  // classifying loops check it between chunks and stop once it has passed (core/deadline.hpp); the
+  // request is answered 503 naming the option, and counted (slamvdb_http_time_budget_exceeded_total).
+  // 10 s: far above what a question costs on a map of a million cells (docs/serve-design.md).
+  std::chrono::microseconds time_budget = std::chrono::seconds(10);
+  // Pixels of one query image (POST /api/query "image"), read from its PNG / JPEG header before
+  // anything is decoded (a small file can claim a huge image); more: 400 naming `image`.
+  std::int64_t max_image_pixels = 4096 * 4096;
 };
 
 // A request the server refuses: HTTP status, the request field at fault ("" for the request as a
@@ -57,9 +66,12 @@ nlohmann::json error_json(const std::string& message, const std::string& field);
 // (1..max_top_k, or 0 with a threshold: every cell at or above it, at most max_top_k), threshold
 // (-1..1), exact (boolean), region ({"bbox": [xmin, ymin, zmin, xmax, ymax, zmax]} and/or
 // {"near": [x, y] or [x, y, z], "radius": r}: query/query_region.hpp; errors name region.bbox,
-// region.near or region.radius). Unknown fields are refused (a typo must not pass as a default).
+// region.near or region.radius), image (a base64 PNG or JPEG, or an array of them: positive terms
+// embedded as `query --image` embeds a file; "data:image/png;base64," before it is allowed).
+// Unknown fields are refused (a typo must not pass as a default).
 struct QueryRequest {
   QueryTerms terms;
+  std::vector<std::string> images;  // the encoded bytes of each image term (PNG / JPEG, not yet checked)
   SearchOptions search = [] {  // the CLI's default: the top 100
     SearchOptions s;
     s.top_k = 100;
@@ -70,6 +82,10 @@ struct QueryRequest {
 };
 
 QueryRequest decode_query_request(std::string_view body, int dim, const ServerLimits& limits);
+
+// RFC 4648 base64 (standard alphabet; '=' padding optional, nothing after it; no whitespace), with
+// an optional data URL prefix "data:<media type>;base64,". nullopt for anything else.
+std::optional<std::string> decode_base64(std::string_view text);
 
 // POST /api/at. Fields: points (an array of [x, y, z], finite numbers; 1..max_points of them),
 // embedding (boolean, default false: the cell's count-weighted mean embedding in each answer).

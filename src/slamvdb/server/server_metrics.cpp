@@ -15,6 +15,11 @@ void ServerMetrics::record(const std::string& route, int status, double seconds)
   ++r.count;
 }
 
+void ServerMetrics::record_time_budget_exceeded(const std::string& route) {
+  std::lock_guard lock(mutex_);
+  ++routes_[route].over_budget;
+}
+
 ServerMetrics::InFlight::InFlight(ServerMetrics& m) : metrics(m) {
   std::lock_guard lock(m.mutex_);
   count = ++m.in_flight_;
@@ -46,6 +51,11 @@ std::string ServerMetrics::text(const std::map<std::string, std::pair<double, st
     out += fmt::format("slamvdb_http_request_seconds_sum{{route=\"{}\"}} {}\n", route, r.sum);
     out += fmt::format("slamvdb_http_request_seconds_count{{route=\"{}\"}} {}\n", route, r.count);
   }
+  out += "# HELP slamvdb_http_time_budget_exceeded_total Requests stopped by the time budget (--time-budget), by "
+         "route pattern (answered 503).\n# TYPE slamvdb_http_time_budget_exceeded_total counter\n";
+  for (const auto& [route, r] : routes_)
+    if (r.over_budget)
+      out += fmt::format("slamvdb_http_time_budget_exceeded_total{{route=\"{}\"}} {}\n", route, r.over_budget);
   out += fmt::format("# HELP slamvdb_http_requests_in_flight Requests being answered.\n"
                      "# TYPE slamvdb_http_requests_in_flight gauge\nslamvdb_http_requests_in_flight {}\n",
                      in_flight_);

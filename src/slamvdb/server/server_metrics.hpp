@@ -17,6 +17,8 @@ class ServerMetrics {
                                                       0.1,   0.25,   0.5,   1.0,  2.5,   10.0};
   // `route`: a route's pattern, or "unmatched" for requests no route took.
   void record(const std::string& route, int status, double seconds);
+  // A request of `route` stopped by the time budget (--time-budget); also record()ed with its 503.
+  void record_time_budget_exceeded(const std::string& route);
   // Requests being answered now (the admission limit reads it).
   struct InFlight {
     explicit InFlight(ServerMetrics& m);
@@ -36,6 +38,7 @@ class ServerMetrics {
     std::array<uint64_t, kBuckets.size() + 1> buckets{};  // not cumulative; the last is +Inf
     double sum = 0;
     uint64_t count = 0;
+    uint64_t over_budget = 0;
   };
   mutable std::mutex mutex_;
   std::map<std::string, RouteStats> routes_;
