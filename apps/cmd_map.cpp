@@ -16,6 +16,7 @@
 #include "map_option_checks.hpp"
 #include "option_checks.hpp"
 #include "progress.hpp"
+#include "push_option.hpp"
 #include "sim_encoder_options.hpp"
 #include "slamvdb/core/error.hpp"
 #include "slamvdb/core/text_escape.hpp"
@@ -55,6 +56,7 @@ struct Options {
   double max_image_pixels = static_cast<double>(kDefaultMaxImagePixels);
   ColourBasisChoice colour_basis;
   RecordingOptions recording;
+  PushOption push;
 };
 
 std::unique_ptr<FeatureSource> make_feature_source(const Options& opt, const SensorInput& input) {
@@ -167,6 +169,9 @@ void run(Options opt, const std::string& config) {
   opt.pipeline.realtime = opt.realtime;
   opt.pipeline.queue_bytes = static_cast<std::size_t>(opt.queue_mb * 1e6);
   const auto source = make_feature_source(opt, *input);
+  MapInfo info = map_info_for(seq, source.get(), opt.pipeline);
+  info.config = config;
+  const auto push = opt.push.connect(opt.pipeline.map, info, opt.output);  // --push: checked before any long work
   std::unique_ptr<PoseSource> pose_source = std::make_unique<DatasetPoses>();
   std::optional<ProgressBar> odometry_bar;
   if (!opt.poses.empty())
@@ -190,8 +195,6 @@ void run(Options opt, const std::string& config) {
   if (own_poses) opt.pipeline.sweeps = &own_poses->sweeps();  // deskewed as the odometry deskewed them
   fmt::print("poses: {} ({} poses)\n", pose_source->describe(), poses.size());
 
-  MapInfo info = map_info_for(seq, source.get(), opt.pipeline);
-  info.config = config;
   std::optional<SemanticMap> start;
   std::unique_ptr<MapFileWriter> writer;
   if (opt.resume) {
@@ -207,6 +210,11 @@ void run(Options opt, const std::string& config) {
     if (!opt.no_checkpoints) writer = MapFileWriter::create(opt.output, opt.pipeline.map, info);
   }
   opt.pipeline.store = writer.get();
+  if (push) {  // the file first, then the fleet; a resumed run's submaps too (the last may be missing)
+    push->keep_in(*writer);
+    push->push_existing(*start);
+    opt.pipeline.store = push.get();
+  }
 
   std::optional<ProgressBar> bar;
   PipelineReport report;
@@ -232,6 +240,7 @@ void run(Options opt, const std::string& config) {
              report.submaps_unloaded ? ""
                                      : fmt::format(", {} world cells in the global index, {:.1f} MB in memory",
                                                    map.num_index_cells(), map.memory_bytes() / 1e6));
+  finish_push(push.get(), opt.push, map.info(), opt.output);
 }
 
 void add(CLI::App& root) {
@@ -355,6 +364,7 @@ void add(CLI::App& root) {
   add_max_memory_option(cmd, opt->max_memory_gb);
   add_colour_basis_option(cmd, opt->colour_basis);
   opt->recording.add_to(cmd);
+  opt->push.add_to(cmd);
   add_option_checks(cmd, [opt, cmd] {
     check_map_options(opt->pipeline, MappingChoices{opt->features, opt->feature_size, opt->sim_feature_precision,
                                                     opt->precision, opt->distortion, opt->max_memory_gb});
@@ -363,6 +373,9 @@ void add(CLI::App& root) {
                                                         "cannot go with --no-checkpoints");
     if (opt->resume && !std::filesystem::is_regular_file(opt->output))
       usage_error(fmt::format("--resume: there is no map file {} to continue", opt->output));
+    if (!opt->push.url.empty() && opt->no_checkpoints)
+      usage_error("--push pushes each submap from the map file written while mapping: it cannot go with --no-checkpoints");
+    if (!opt->push.session.empty() && opt->push.url.empty()) usage_error("--push-session goes with --push");
     if (opt->odometry && !opt->poses.empty()) usage_error("--odometry and --poses are two pose sources: give one");
     if (!opt->recording.pose_frame.empty() && (opt->odometry || !opt->poses.empty()))
       usage_error(fmt::format("--pose-frame and {} are two pose sources: give one", opt->odometry ? "--odometry" : "--poses"));

@@ -18,6 +18,7 @@
 #include "io_options.hpp"
 #include "option_checks.hpp"
 #include "progress.hpp"
+#include "push_option.hpp"
 #include "slamvdb/core/error.hpp"
 #include "slamvdb/core/output_file.hpp"
 #include "slamvdb/core/text_escape.hpp"
@@ -42,6 +43,7 @@ struct Options {
   ColourBasisChoice colour_basis;
   std::string fusion_weighting = "paper";
   RecordingOptions recording;
+  PushOption push;
 };
 
 // Pose errors of the scans that have a ground-truth pose, after SE(3) alignment.
@@ -87,8 +89,13 @@ void run(Options opt, const std::string& config) {
   // from the vehicle can leave memory (--unload-radius); corrections and merges are kept in step.
   const MapInfo start_info = map_info_for(seq, source.get(), opt.pipeline);
   const OutputTarget target = resolve_output(opt.output);
+  const auto push = opt.push.connect(opt.pipeline.map, start_info, opt.output);  // --push: before any work
   auto writer = MapFileWriter::create(opt.output, opt.pipeline.map, start_info);
   slam_options.pipeline.store = writer.get();
+  if (push) {  // the file first, then the fleet
+    push->keep_in(*writer);
+    slam_options.pipeline.store = push.get();
+  }
   std::optional<ProgressBar> bar;
   const auto started = std::chrono::steady_clock::now();
   auto progress = [&](std::size_t done, std::size_t total, const TrackingResult& r, const StreamProgress& read) {
@@ -154,6 +161,7 @@ void run(Options opt, const std::string& config) {
   }
   fmt::print("map saved to {}: {} submaps, {} semantic entries{}\n", opt.output, saved.submaps.size(),
              saved.semantic_voxels, opt.poses_out.empty() ? "" : "; poses written to " + opt.poses_out);
+  finish_push(push.get(), opt.push, map.info(), opt.output);
 }
 
 void add(CLI::App& root) {
@@ -217,7 +225,9 @@ void add(CLI::App& root) {
   add_max_memory_option(cmd, opt->max_memory_gb);
   add_colour_basis_option(cmd, opt->colour_basis);
   opt->recording.add_to(cmd);
+  opt->push.add_to(cmd);
   add_option_checks(cmd, [opt] {
+    if (!opt->push.session.empty() && opt->push.url.empty()) usage_error("--push-session goes with --push");
     check_feature_options(opt->features);
     opt->pipeline.map.semantic.dim = opt->features.dim;
     set_fusion_weighting(opt->pipeline, opt->fusion_weighting);
