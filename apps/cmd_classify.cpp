@@ -52,13 +52,18 @@ std::vector<std::filesystem::path> nav_grid_files_of(const std::string& prefix) 
 void run(const Options& opt) {
   const QuerySet queries = load_query_set(opt.queries);
   const auto t0 = std::chrono::steady_clock::now();
-  const SemanticMap map = opt.source.read(opt.region.region());
   ClassifyOptions options;
   options.void_to_second_best = !opt.no_void_rule;
   const ModelIdCheck model_check = opt.ignore_model_id ? ModelIdCheck::kIgnore : ModelIdCheck::kRequireMatch;
   const std::optional<QueryRegion> region = opt.region.region();
-  std::vector<ClassifiedCell> cells = region ? classify_region(map, queries, *region, options, model_check)
-                                             : classify_map(map, queries, options, model_check);
+  // A fleet region is classified tile by tile (bounded memory); the picture and the grid draw the
+  // region's occupied voxels, so they read it whole, as a map file is.
+  const bool by_tiles = !opt.source.db.empty() && opt.png.empty() && opt.grid.empty();
+  std::optional<SemanticMap> map;
+  if (!by_tiles) map.emplace(opt.source.read(region));
+  std::vector<ClassifiedCell> cells = by_tiles ? opt.source.classify_fleet(*region, queries, options, model_check)
+                                      : region ? classify_region(*map, queries, *region, options, model_check)
+                                               : classify_map(*map, queries, options, model_check);
   sort_by_cell(cells);
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   const ClassSummary summary = summarize_classes(cells, queries, opt.min_confidence);
@@ -83,7 +88,7 @@ void run(const Options& opt) {
   }
   const std::vector<Rgb> colours = class_colours(queries);
   if (!opt.png.empty()) {
-    const BirdsEyeImage image = write_class_picture(opt.png, map, cells, queries, submap_path(map),
+    const BirdsEyeImage image = write_class_picture(opt.png, *map, cells, queries, submap_path(*map),
                                                     "path (submap anchors)", opt.min_confidence, region);
     fmt::print("PNG  {} (+ .yaml): {}x{} px at {:.3f} m per pixel, terrain layer by class\n", opt.png, image.rgb.cols,
                image.rgb.rows, image.resolution);
@@ -96,13 +101,13 @@ void run(const Options& opt) {
     options.region = region;
     options.resolution = opt.grid_resolution;
     try {
-      nav_grid_factor(opt.grid_resolution, map.params().index_cell());
+      nav_grid_factor(opt.grid_resolution, map->params().index_cell());
     } catch (const Error& e) {
       throw Error(fmt::format("--grid-resolution: {}", e.what()));
     }  // cells are classify_region's for it (GET /api/nav-grid builds the same)
-    const NavGrid grid = build_nav_grid(map, cells, options);
+    const NavGrid grid = build_nav_grid(*map, cells, options);
     const NavGridFiles files =
-        write_nav_grid(opt.grid, grid, queries.names, colours, submap_path(map), opt.min_confidence);
+        write_nav_grid(opt.grid, grid, queries.names, colours, submap_path(*map), opt.min_confidence);
     std::size_t lethal = 0, unknown = 0, uncertain_cells = 0;
     for (const int8_t c : grid.cost) lethal += c == kLethalCost, unknown += c == kUnknownCost;
     for (const uint8_t u : grid.uncertain) uncertain_cells += u;

@@ -17,6 +17,7 @@
 #include "map_option_checks.hpp"
 #include "option_checks.hpp"
 #include "progress.hpp"
+#include "push_option.hpp"
 #include "sim_encoder_options.hpp"
 #include "slamvdb/core/error.hpp"
 #include "slamvdb/core/text_escape.hpp"
@@ -57,6 +58,7 @@ struct Options {
   ColourBasisChoice colour_basis;
   RecordingOptions recording;
   LiveServeOptions serve;
+  PushOption push;
 };
 
 std::unique_ptr<FeatureSource> make_feature_source(const Options& opt, const SensorInput& input) {
@@ -175,6 +177,9 @@ void run(Options opt, const std::string& config) {
   opt.pipeline.realtime = opt.realtime;
   opt.pipeline.queue_bytes = static_cast<std::size_t>(opt.queue_mb * 1e6);
   const auto source = make_feature_source(opt, *input);
+  MapInfo info = map_info_for(seq, source.get(), opt.pipeline);
+  info.config = config;
+  const auto push = opt.push.connect(opt.pipeline.map, info, opt.output);  // --push: checked before any long work
   std::unique_ptr<PoseSource> pose_source = std::make_unique<DatasetPoses>();
   std::optional<ProgressBar> odometry_bar;
   if (!opt.poses.empty())
@@ -198,8 +203,6 @@ void run(Options opt, const std::string& config) {
   if (own_poses) opt.pipeline.sweeps = &own_poses->sweeps();  // deskewed as the odometry deskewed them
   fmt::print("poses: {} ({} poses)\n", pose_source->describe(), poses.size());
 
-  MapInfo info = map_info_for(seq, source.get(), opt.pipeline);
-  info.config = config;
   std::optional<SemanticMap> start;
   std::unique_ptr<MapFileWriter> writer;
   if (opt.resume) {
@@ -215,6 +218,11 @@ void run(Options opt, const std::string& config) {
     if (!opt.no_checkpoints) writer = MapFileWriter::create(opt.output, opt.pipeline.map, info);
   }
   opt.pipeline.store = writer.get();
+  if (push) {  // the file first, then the fleet; a resumed run's submaps too (the last may be missing)
+    push->keep_in(*writer);
+    push->push_existing(*start);
+    opt.pipeline.store = push.get();
+  }
 
   std::optional<ProgressBar> bar;
   PipelineReport report;
@@ -241,7 +249,8 @@ void run(Options opt, const std::string& config) {
              report.submaps_unloaded ? ""
                                      : fmt::format(", {} world cells in the global index, {:.1f} MB in memory",
                                                    map.num_index_cells(), map.memory_bytes() / 1e6));
-  if (live) live->finish(std::move(map));
+  finish_push(push.get(), opt.push, map.info(), opt.output);
+  if (live) live->finish(std::move(map));  // last: it takes the map
 }
 
 void add(CLI::App& root) {
@@ -366,6 +375,7 @@ void add(CLI::App& root) {
   add_colour_basis_option(cmd, opt->colour_basis);
   opt->recording.add_to(cmd);
   opt->serve.add_to(cmd);
+  opt->push.add_to(cmd);
   add_option_checks(cmd, [opt, cmd] {
     opt->serve.check();
     check_map_options(opt->pipeline, MappingChoices{opt->features, opt->feature_size, opt->sim_feature_precision,
@@ -375,6 +385,9 @@ void add(CLI::App& root) {
                                                         "cannot go with --no-checkpoints");
     if (opt->resume && !std::filesystem::is_regular_file(opt->output))
       usage_error(fmt::format("--resume: there is no map file {} to continue", opt->output));
+    if (!opt->push.url.empty() && opt->no_checkpoints)
+      usage_error("--push pushes each submap from the map file written while mapping: it cannot go with --no-checkpoints");
+    if (!opt->push.session.empty() && opt->push.url.empty()) usage_error("--push-session goes with --push");
     if (opt->odometry && !opt->poses.empty()) usage_error("--odometry and --poses are two pose sources: give one");
     if (!opt->recording.pose_frame.empty() && (opt->odometry || !opt->poses.empty()))
       usage_error(fmt::format("--pose-frame and {} are two pose sources: give one", opt->odometry ? "--odometry" : "--poses"));

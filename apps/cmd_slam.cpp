@@ -19,6 +19,7 @@
 #include "live_serve_option.hpp"
 #include "option_checks.hpp"
 #include "progress.hpp"
+#include "push_option.hpp"
 #include "slamvdb/core/error.hpp"
 #include "slamvdb/core/output_file.hpp"
 #include "slamvdb/core/text_escape.hpp"
@@ -44,6 +45,7 @@ struct Options {
   std::string fusion_weighting = "paper";
   RecordingOptions recording;
   LiveServeOptions serve;
+  PushOption push;
 };
 
 // Pose errors of the scans that have a ground-truth pose, after SE(3) alignment.
@@ -95,8 +97,13 @@ void run(Options opt, const std::string& config) {
   }
   const MapInfo start_info = map_info_for(seq, source.get(), opt.pipeline);
   const OutputTarget target = resolve_output(opt.output);
+  const auto push = opt.push.connect(opt.pipeline.map, start_info, opt.output);  // --push: before any work
   auto writer = MapFileWriter::create(opt.output, opt.pipeline.map, start_info);
   slam_options.pipeline.store = writer.get();
+  if (push) {  // the file first, then the fleet
+    push->keep_in(*writer);
+    slam_options.pipeline.store = push.get();
+  }
   std::optional<ProgressBar> bar;
   const auto started = std::chrono::steady_clock::now();
   auto progress = [&](std::size_t done, std::size_t total, const TrackingResult& r, const StreamProgress& read) {
@@ -163,7 +170,8 @@ void run(Options opt, const std::string& config) {
   }
   fmt::print("map saved to {}: {} submaps, {} semantic entries{}\n", opt.output, saved.submaps.size(),
              saved.semantic_voxels, opt.poses_out.empty() ? "" : "; poses written to " + opt.poses_out);
-  if (live) live->finish(std::move(map));
+  finish_push(push.get(), opt.push, map.info(), opt.output);
+  if (live) live->finish(std::move(map));  // last: it takes the map
 }
 
 void add(CLI::App& root) {
@@ -228,8 +236,10 @@ void add(CLI::App& root) {
   add_colour_basis_option(cmd, opt->colour_basis);
   opt->recording.add_to(cmd);
   opt->serve.add_to(cmd);
+  opt->push.add_to(cmd);
   add_option_checks(cmd, [opt] {
     opt->serve.check();
+    if (!opt->push.session.empty() && opt->push.url.empty()) usage_error("--push-session goes with --push");
     check_feature_options(opt->features);
     opt->pipeline.map.semantic.dim = opt->features.dim;
     set_fusion_weighting(opt->pipeline, opt->fusion_weighting);

@@ -14,6 +14,7 @@
 #include "option_checks.hpp"
 #include "region_options.hpp"
 #include "session_option.hpp"
+#include "slamvdb/fleet/fleet_classify.hpp"
 #include "slamvdb/fleet/fleet_database.hpp"
 #include "slamvdb/fleet/fleet_search.hpp"
 #include "slamvdb/store/map_store.hpp"
@@ -58,6 +59,18 @@ struct MapSourceOptions {
     fmt::print("fleet: {} submaps in the region, {} read, {} skipped by their summaries ({} of {} groups), {:.3f} s\n",
                r.submaps_in_region, r.submaps_scored, r.submaps_skipped, r.groups_skipped, r.groups, r.seconds);
     return std::move(pruned.map);
+  }
+  // With --db, classify: the region tile by tile, one tile's submaps in memory at a time
+  // (fleet/fleet_classify.hpp; the cells of classify on the pulled region). Prints what was read.
+  std::vector<ClassifiedCell> classify_fleet(const QueryRegion& region, const QuerySet& queries,
+                                             const ClassifyOptions& options, ModelIdCheck model_check) const {
+    fleet::FleetDatabase fleet(db);
+    fleet::FleetClassification c = fleet::classify_fleet_region(fleet, region, queries, {options, model_check, sessions});
+    fmt::print("fleet: {} submaps in the region, {} read ({} reads over {} tiles, at most {} submaps in memory), {} "
+               "skipped (outside the region or without semantics), {:.3f} s\n",
+               c.submaps_in_region, c.submaps_read, c.reads, c.tiles, c.peak_submaps_in_memory, c.submaps_skipped,
+               c.seconds);
+    return std::move(c.cells);
   }
   SemanticMap read(const std::optional<QueryRegion>& region) const {
     if (db.empty()) return load_map_of_sessions(map, sessions);

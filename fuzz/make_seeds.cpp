@@ -7,6 +7,7 @@
 #include <filesystem>
 #include <fstream>
 #include <functional>
+#include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <sqlite3.h>
@@ -16,6 +17,7 @@
 #include "slamvdb/io/npy.hpp"
 #include "slamvdb/io/pcd.hpp"
 #include "slamvdb/query/query_set.hpp"
+#include "slamvdb/store/map_rows.hpp"
 #include "slamvdb/store/map_store.hpp"
 
 namespace fs = std::filesystem;
@@ -138,6 +140,19 @@ int main(int argc, char** argv) {
   seed("server_requests", "classes", "?bbox=-2,-2,-1,2,2,1&min_confidence=0.5");
   seed("server_requests", "nav_grid", "?near=0,0&radius=3&resolution=0.5&format=png&robot_height=1.2&min_confidence=0.1");
   seed("server_requests", "points", "?bbox=-2,-2,-1,2,2,1&lod=2&limit=5000&query=tall%20grass");
+  seed("fleet_rows", "pose", std::string(1, '\0') + "{0.5,-0.8660254037844386,0,12.25,0.8660254037844386,0.5,0,-3,0,0,1,1e+2,0,0,0,1}");
+  seed("fleet_rows", "centroid", std::string(1, '\1') + "{0.70710677,-0.70710677,0,1.5e-05}");
+  {  // the fleet row's parameters as `push` writes them: a map's meta entries, all strings
+    nlohmann::json entries = nlohmann::json::object();
+    slamvdb::MapParams params;
+    params.semantic.dim = 8;
+    slamvdb::MapInfo info;
+    info.model_id = "simulated-clip";
+    info.ontology = "rellis";
+    for (const auto& [key, value] : slamvdb::store::map_meta(params, info))
+      entries[key] = value;
+    seed("fleet_rows", "params", std::string(1, '\2') + entries.dump());
+  }
   seed("ontology", "coarse", file_bytes(fs::path(SLAMVDB_SOURCE_DIR) / "data/ontology/rellis3d_coarse.yaml"));
   seed("ontology", "fine", file_bytes(fs::path(SLAMVDB_SOURCE_DIR) / "data/ontology/rellis3d_fine.yaml"));
 

@@ -85,6 +85,7 @@ class FleetDatabase {
   const std::string& display_url() const { return display_url_; }
 
  private:
+  friend class FleetPushSession;
   struct Connection;
   std::unique_ptr<Connection> connection_;
   std::string display_url_;

@@ -5,10 +5,10 @@
 #include <algorithm>
 #include <chrono>
 #include <iterator>
-#include <nlohmann/json.hpp>
 
 #include "slamvdb/core/error.hpp"
 #include "slamvdb/fleet/fleet_connection.hpp"
+#include "slamvdb/fleet/fleet_rows.hpp"
 #include "slamvdb/store/map_rows.hpp"
 #include "slamvdb/store/submap_payload.hpp"
 
@@ -28,30 +28,7 @@ std::string key_array(const std::optional<std::vector<FleetSubmapKey>>& keys, bo
   return out + "}";
 }
 
-Pose pose_of(const pqxx::field& f, const std::string& what) {
-  // float8[] in text form: {a,b,...}, 16 entries row-major.
-  std::string text = f.c_str();
-  if (text.size() < 2 || text.front() != '{' || text.back() != '}')
-    throw Error(fmt::format("{}: '{}' is not a pose array", what, text));
-  std::vector<double> v;
-  std::size_t start = 1;
-  while (start < text.size() - 1) {
-    const std::size_t end = std::min(text.find(',', start), text.size() - 1);
-    v.push_back(std::stod(text.substr(start, end - start)));
-    start = end + 1;
-  }
-  if (v.size() != 16) throw Error(fmt::format("{}: {} entries, expected 16", what, v.size()));
-  Eigen::Matrix4d m;
-  for (int r = 0; r < 4; ++r)
-    for (int c = 0; c < 4; ++c) m(r, c) = v[static_cast<std::size_t>(4 * r + c)];
-  const Eigen::Matrix3d R = m.topLeftCorner<3, 3>();
-  if (!m.allFinite() || (R.transpose() * R - Eigen::Matrix3d::Identity()).norm() > 1e-6 ||
-      !m.row(3).isApprox(Eigen::RowVector4d(0, 0, 0, 1)))
-    throw Error(fmt::format("{} is not a rigid transform", what));
-  Pose T;
-  T.matrix() = m;
-  return T;
-}
+Pose pose_of(const pqxx::field& f, const std::string& what) { return parse_pose_array(f.c_str(), what); }
 
 }  // namespace
 
@@ -62,15 +39,7 @@ FleetDefinition FleetDatabase::definition() {
       throw Error(fmt::format("fleet database {} holds no fleet map (nothing was pushed)", display_url_));
     const pqxx::result r = tx.exec("SELECT params::text FROM slamvdb.fleet");
     if (r.empty()) throw Error(fmt::format("fleet database {} holds no fleet map (nothing was pushed)", display_url_));
-    store::Meta meta;
-    const nlohmann::json entries = nlohmann::json::parse(r[0][0].c_str());
-    for (const auto& [key, value] : entries.items())
-      if (value.get<std::string>() != "(absent)") meta[key] = value.get<std::string>();
-    FleetDefinition d;
-    d.params = store::parse_params(meta);
-    d.info.model_id = store::meta_value(meta, "model_id");
-    d.info.ontology = store::meta_value(meta, "ontology");
-    return d;
+    return fleet_definition_of(r[0][0].c_str(), fmt::format("fleet database {}", display_url_));
   } catch (const pqxx::failure& e) {
     throw Error(fmt::format("fleet database {}: {}", display_url_, trimmed_message(e.what())));
   }

@@ -29,6 +29,7 @@ struct RegionSubmap {
   FleetSubmapKey key;
   Eigen::AlignedBox3d bounds_fleet;
   std::optional<EmbeddingCap> cap;
+  std::size_t semantic_voxels = 0;  // 0: no embedding, nothing to classify or find
 };
 
 // One submap as pulled: renumbered (ids of different sessions collide), anchored in the fleet

@@ -11,6 +11,8 @@
 
 #include "slamvdb/core/error.hpp"
 #include "slamvdb/fleet/fleet_connection.hpp"
+#include "slamvdb/fleet/fleet_push_rows.hpp"
+#include "slamvdb/fleet/fleet_rows.hpp"
 #include "slamvdb/fleet/fleet_summary.hpp"
 #include "slamvdb/map/semantic_map.hpp"
 #include "slamvdb/store/map_rows.hpp"
@@ -42,6 +44,8 @@ nlohmann::json fleet_entries(const MapParams& params, const MapInfo& info) {
   return entries;
 }
 
+}  // namespace
+
 // Checks the map against the fleet row; with `define`, the first map pushed defines it.
 void check_fleet(pqxx::transaction_base& tx, const MapParams& params, const MapInfo& info, bool define,
                  const std::string& display_url) {
@@ -53,9 +57,10 @@ void check_fleet(pqxx::transaction_base& tx, const MapParams& params, const MapI
         params.occupancy.voxel_size, params.semantic.dim, info.model_id, info.ontology, ours.dump());
   const pqxx::result fleet = tx.exec("SELECT params::text FROM slamvdb.fleet");
   if (fleet.empty()) return;  // no map pushed yet: any map may define the fleet
-  const nlohmann::json theirs = nlohmann::json::parse(fleet[0][0].c_str());
+  const std::map<std::string, std::string> theirs = parse_fleet_entries(fleet[0][0].c_str(), display_url);
   for (const char* key : kSharedEntries) {
-    const std::string a = theirs.contains(key) ? theirs[key].get<std::string>() : "(absent)";
+    const auto it = theirs.find(key);
+    const std::string a = it != theirs.end() ? it->second : "(absent)";
     const std::string b = ours[key].get<std::string>();
     if (a != b)
       throw Error(fmt::format("the map differs from the fleet at {} in '{}': the fleet has '{}', the map '{}'; "
@@ -64,7 +69,6 @@ void check_fleet(pqxx::transaction_base& tx, const MapParams& params, const MapI
   }
 }
 
-}  // namespace
 
 void FleetDatabase::check_map(const MapParams& params, const MapInfo& info) {
   ensure_schema();
@@ -110,7 +114,7 @@ struct EncodedSubmap {
   std::vector<OwnedSemanticRow> semantics;
   store::PayloadBytes bytes;
   int64_t payload_crc = 0;  // over the rows' CRCs and the submap's own values
-  Eigen::AlignedBox3d bounds_fleet;
+  Eigen::AlignedBox3d bounds_local, bounds_fleet;  // of its blocks, in its own frame and in the fleet's
   std::optional<EmbeddingCap> cap;  // the summary a query prunes by (none: no usable embedding)
   std::string centroid_array() const {  // as a real[] literal (9 digits: a float exactly)
     std::string out = "{";
@@ -119,6 +123,20 @@ struct EncodedSubmap {
     return out + "}";
   }
 };
+
+}  // namespace
+
+// A submap's footprint box in the fleet frame from the box of its blocks in its own frame (a rotated
+// box is held by the box of its corners); an empty submap's is its anchor.
+Eigen::AlignedBox3d fleet_box(const Eigen::AlignedBox3d& local, const Pose& T_fleet_submap) {
+  Eigen::AlignedBox3d out;
+  if (local.isEmpty()) return out.extend(T_fleet_submap.translation());
+  for (int corner = 0; corner < 8; ++corner)
+    out.extend(T_fleet_submap * local.corner(static_cast<Eigen::AlignedBox3d::CornerType>(corner)));
+  return out;
+}
+
+namespace {
 
 EncodedSubmap encode(const Submap& submap, const MapParams& params, const Pose& T_fleet_session) {
   EncodedSubmap out;
@@ -139,21 +157,14 @@ EncodedSubmap encode(const Submap& submap, const MapParams& params, const Pose& 
       });
   out.payload_crc = crc.value();
   out.cap = embedding_cap(submap.voxels().semantics());
-  // The footprint: the box of every block's corners in the fleet frame (a rotated box is held by
-  // the box of its corners; blocks, not voxels, bound it: cheaper and still a superset).
+  // The footprint: the box of every block's corners (blocks, not voxels, bound it: cheaper and still
+  // a superset), moved to the fleet frame.
   const double block = kBlockSide * params.occupancy.voxel_size;
-  Eigen::AlignedBox3d local;
   for (const auto& [bk, unused] : submap.voxels().occupancy().blocks()) {
-    local.extend(bk.cast<double>() * block);
-    local.extend((bk.cast<double>() + Vec3d::Ones()) * block);
+    out.bounds_local.extend(bk.cast<double>() * block);
+    out.bounds_local.extend((bk.cast<double>() + Vec3d::Ones()) * block);
   }
-  if (!local.isEmpty()) {
-    const Pose T_fleet_submap = T_fleet_session * info.T_world_submap;
-    for (int corner = 0; corner < 8; ++corner)
-      out.bounds_fleet.extend(T_fleet_submap * local.corner(static_cast<Eigen::AlignedBox3d::CornerType>(corner)));
-  } else {
-    out.bounds_fleet.extend((T_fleet_session * info.T_world_submap).translation());  // an empty submap: its anchor
-  }
+  out.bounds_fleet = fleet_box(out.bounds_local, T_fleet_session * info.T_world_submap);
   return out;
 }
 
@@ -183,6 +194,8 @@ const std::string kUpdateCatalog =
     "embedding_centroid = CASE WHEN $21 THEN $22::real[] END, embedding_radius = CASE WHEN $21 THEN $23::float8 END, "
     "revision = revision + 1 WHERE session = $1 AND submap = $2 AND shard = $24";
 
+}  // namespace
+
 // The shard that holds a submap: its home tile (the tile of its footprint's centre at its first
 // push, kept for good, so a correction never moves rows between servers) and that tile's shard (a
 // new tile goes to the newest shard). The homes row is locked until the submap's transaction ends:
@@ -210,105 +223,81 @@ int submap_shard(pqxx::work& tx, int64_t session, int submap, const Eigen::Align
       .as<int>();
 }
 
-}  // namespace
-
-PushReport FleetDatabase::push_map(const SemanticMap& map, const PushOptions& options) {
-  const auto t0 = std::chrono::steady_clock::now();
-  if (options.session.empty()) throw Error("a push needs a session name");
-  ensure_schema();
-  PushReport report;
-  pqxx::connection& connection = connection_->connection;
-  try {
-    {
-      pqxx::work tx(connection);
-      check_fleet(tx, map.params(), map.info(), true, display_url_);
-      TimeRange span;
-      for (const SubmapInfo& s : map.submaps())
-        if (!s.time_range.empty()) span = span.empty() ? s.time_range : TimeRange{std::min(span.begin, s.time_range.begin), std::max(span.end, s.time_range.end)};
-      const pqxx::row session = tx.exec_params1(
-          "INSERT INTO slamvdb.sessions(name, robot, source, time_begin, time_end, t_fleet_session) "
-          "VALUES ($1, $2, $3, CASE WHEN $4 THEN $5::float8 END, CASE WHEN $4 THEN $6::float8 END, $7::float8[]) "
-          "ON CONFLICT (name) DO UPDATE SET robot = EXCLUDED.robot, source = EXCLUDED.source, "
-          "time_begin = LEAST(sessions.time_begin, EXCLUDED.time_begin), "
-          "time_end = GREATEST(sessions.time_end, EXCLUDED.time_end), t_fleet_session = EXCLUDED.t_fleet_session "
-          "RETURNING id, xmax = 0",
-          options.session, options.robot, map.info().source, !span.empty(), span.begin, span.end,
-          pose_array(options.T_fleet_session));
-      report.session_id = session[0].as<int64_t>();
-      report.session_created = session[1].as<bool>();
-      tx.commit();
+// One submap's catalog row and payload rows in `tx` (FleetPushSession::push): inserted when new,
+// the catalog row alone when only its anchor moved, nothing when unchanged, all replaced when its
+// payload changed. Returns its blocks' box in its own frame.
+Eigen::AlignedBox3d write_submap(pqxx::work& tx, int64_t session, const Submap& submap, const MapParams& params,
+                                 const Pose& T_fleet_session, PushReport& report) {
+  const SubmapInfo& info = submap.info();
+  const EncodedSubmap e = encode(submap, params, T_fleet_session);
+  const Eigen::AlignedBox3d& b = e.bounds_fleet;
+  const VoxelMap& v = submap.voxels();
+  const bool timed = !info.time_range.empty();
+  const auto total_bytes = static_cast<int64_t>(e.bytes.occupancy + e.bytes.semantics);
+  const int shard = submap_shard(tx, session, info.id, b);
+  const auto values = [&](const std::string& sql) {
+    return tx.exec_params(sql, session, info.id, pose_array(info.T_world_submap), timed,
+                          timed ? info.time_range.begin : 0.0, timed ? info.time_range.end : 0.0, info.path_length,
+                          b.min().x(), b.min().y(), b.max().x(), b.max().y(), b.min().z(), b.max().z(),
+                          static_cast<int64_t>(v.occupancy().num_blocks()),
+                          static_cast<int64_t>(v.occupancy().num_known_voxels()),
+                          static_cast<int64_t>(v.occupancy().num_occupied_voxels()),
+                          static_cast<int64_t>(v.semantics().size()), kMapFormatVersion, e.payload_crc, total_bytes,
+                          e.cap.has_value(), e.centroid_array(), e.cap ? e.cap->radius : 0.0, shard);
+  };
+  // The row as it is, locked: a second pusher of the same submap waits here.
+  const pqxx::result existing = tx.exec_params(
+      "SELECT payload_crc = $3 AND payload_format = $4, t_world_submap = $5::float8[] AND "
+      "footprint = ST_MakeEnvelope($6, $7, $8, $9, 0) AND z_min = $10 AND z_max = $11 "
+      "AND (embedding_radius IS NOT NULL OR NOT $12) "
+      "FROM slamvdb.submaps WHERE session = $1 AND submap = $2 AND shard = $13 FOR UPDATE",
+      session, info.id, e.payload_crc, kMapFormatVersion, pose_array(info.T_world_submap), b.min().x(), b.min().y(),
+      b.max().x(), b.max().y(), b.min().z(), b.max().z(), e.cap.has_value(), shard);
+  bool write_payload = true;
+  if (existing.empty()) {
+    values("INSERT INTO slamvdb.submaps(session, submap, t_world_submap, time_begin, time_end, path_length, "
+           "footprint, z_min, z_max, blocks, known_voxels, occupied_voxels, semantic_voxels, payload_format, "
+           "payload_crc, payload_bytes, embedding_centroid, embedding_radius, shard) VALUES ($1, $2, $3::float8[], "
+           "CASE WHEN $4 THEN $5::float8 END, CASE WHEN $4 THEN $6::float8 END, $7, "
+           "ST_MakeEnvelope($8, $9, $10, $11, 0), $12, $13, $14, $15, $16, $17, $18, $19, $20, "
+           "CASE WHEN $21 THEN $22::real[] END, CASE WHEN $21 THEN $23::float8 END, $24)");
+    ++report.submaps_added;
+  } else if (existing[0][0].as<bool>()) {
+    write_payload = false;
+    if (existing[0][1].as<bool>()) {
+      ++report.submaps_unchanged;
+    } else {
+      values(kUpdateCatalog);
+      ++report.anchors_moved;
     }
-    const std::vector<SubmapInfo> submaps = map.submaps();
-    std::size_t done = 0;
-    for (const SubmapInfo& info : submaps) {
-      map.read_submap(info.id, [&](const Submap& submap) {
-        const EncodedSubmap e = encode(submap, map.params(), options.T_fleet_session);
-        const Eigen::AlignedBox3d& b = e.bounds_fleet;
-        const VoxelMap& v = submap.voxels();
-        const bool timed = !info.time_range.empty();
-        const auto total_bytes = static_cast<int64_t>(e.bytes.occupancy + e.bytes.semantics);
-        pqxx::work tx(connection);
-        const int shard = submap_shard(tx, report.session_id, info.id, b);
-        const auto values = [&](const std::string& sql) {
-          return tx.exec_params(sql, report.session_id, info.id, pose_array(info.T_world_submap), timed,
-                                timed ? info.time_range.begin : 0.0, timed ? info.time_range.end : 0.0,
-                                info.path_length, b.min().x(), b.min().y(), b.max().x(), b.max().y(), b.min().z(),
-                                b.max().z(), static_cast<int64_t>(v.occupancy().num_blocks()),
-                                static_cast<int64_t>(v.occupancy().num_known_voxels()),
-                                static_cast<int64_t>(v.occupancy().num_occupied_voxels()),
-                                static_cast<int64_t>(v.semantics().size()), kMapFormatVersion, e.payload_crc,
-                                total_bytes, e.cap.has_value(), e.centroid_array(), e.cap ? e.cap->radius : 0.0, shard);
-        };
-        // The row as it is, locked: a second pusher of the same submap waits here.
-        const pqxx::result existing = tx.exec_params(
-            "SELECT payload_crc = $3 AND payload_format = $4, t_world_submap = $5::float8[] AND "
-            "footprint = ST_MakeEnvelope($6, $7, $8, $9, 0) AND z_min = $10 AND z_max = $11 "
-            "AND (embedding_radius IS NOT NULL OR NOT $12) "
-            "FROM slamvdb.submaps WHERE session = $1 AND submap = $2 AND shard = $13 FOR UPDATE",
-            report.session_id, info.id, e.payload_crc, kMapFormatVersion, pose_array(info.T_world_submap),
-            b.min().x(), b.min().y(), b.max().x(), b.max().y(), b.min().z(), b.max().z(), e.cap.has_value(), shard);
-        bool write_payload = true;
-        if (existing.empty()) {
-          values("INSERT INTO slamvdb.submaps(session, submap, t_world_submap, time_begin, time_end, path_length, "
-                 "footprint, z_min, z_max, blocks, known_voxels, occupied_voxels, semantic_voxels, payload_format, "
-                 "payload_crc, payload_bytes, embedding_centroid, embedding_radius, shard) VALUES ($1, $2, $3::float8[], "
-                 "CASE WHEN $4 THEN $5::float8 END, CASE WHEN $4 THEN $6::float8 END, $7, "
-                 "ST_MakeEnvelope($8, $9, $10, $11, 0), $12, $13, $14, $15, $16, $17, $18, $19, $20, "
-                 "CASE WHEN $21 THEN $22::real[] END, CASE WHEN $21 THEN $23::float8 END, $24)");
-          ++report.submaps_added;
-        } else if (existing[0][0].as<bool>()) {
-          write_payload = false;
-          if (existing[0][1].as<bool>()) {
-            ++report.submaps_unchanged;
-          } else {
-            values(kUpdateCatalog);
-            ++report.anchors_moved;
-          }
-        } else {
-          tx.exec_params("DELETE FROM slamvdb.occupancy WHERE session = $1 AND submap = $2 AND shard = $3",
-                         report.session_id, info.id, shard);
-          tx.exec_params("DELETE FROM slamvdb.semantics WHERE session = $1 AND submap = $2 AND shard = $3",
-                         report.session_id, info.id, shard);
-          values(kUpdateCatalog);
-          ++report.payloads_replaced;
-        }
-        if (write_payload) {
-          copy_payload(tx, report.session_id, info.id, shard, e);
-          report.rows_written += e.occupancy.size() + e.semantics.size();
-          report.payload_bytes += static_cast<uint64_t>(total_bytes);
-        }
-        tx.commit();
-      });
-      if (options.on_submap) options.on_submap(++done, submaps.size());
-    }
-  } catch (const Error&) {
-    throw;
-  } catch (const pqxx::failure& e) {
-    throw Error(fmt::format("push to the fleet database {}: {}{}", display_url_, trimmed_message(e.what()),
-                            shard_hint(e.what())));
+  } else {
+    for (const char* table : {"occupancy", "semantics"})
+      tx.exec_params(fmt::format("DELETE FROM slamvdb.{} WHERE session = $1 AND submap = $2 AND shard = $3", table),
+                     session, info.id, shard);
+    values(kUpdateCatalog);
+    ++report.payloads_replaced;
   }
-  report.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  return report;
+  if (write_payload) {
+    copy_payload(tx, session, info.id, shard, e);
+    report.rows_written += e.occupancy.size() + e.semantics.size();
+    report.payload_bytes += static_cast<uint64_t>(total_bytes);
+  }
+  // The session's time range grows with its submaps (LEAST and GREATEST skip a new session's NULL).
+  if (timed)
+    tx.exec_params("UPDATE slamvdb.sessions SET time_begin = LEAST(time_begin, $2), time_end = GREATEST(time_end, $3) "
+                   "WHERE id = $1 AND (time_begin IS NULL OR time_begin > $2 OR time_end < $3)",
+                   session, info.time_range.begin, info.time_range.end);
+  return e.bounds_local;
+}
+
+// The shard that holds a pushed submap (its home tile's); none when it was never pushed.
+std::optional<int> pushed_shard(pqxx::work& tx, int64_t session, int submap) {
+  const pqxx::result r = tx.exec_params(
+      "SELECT t.shard FROM slamvdb.submap_homes h JOIN slamvdb.tiles t USING (tile_x, tile_y) "
+      "WHERE h.session = $1 AND h.submap = $2",
+      session, submap);
+  if (r.empty()) return std::nullopt;
+  return r[0][0].as<int>();
 }
 
 }  // namespace slamvdb::fleet

@@ -8,21 +8,10 @@
 
 #include "slamvdb/core/error.hpp"
 #include "slamvdb/fleet/fleet_connection.hpp"
+#include "slamvdb/fleet/fleet_rows.hpp"
 
 namespace slamvdb::fleet {
 namespace {
-
-// The centroid's real[] text form ({a,b,...}) as floats.
-std::vector<float> search_float_array(const std::string& text, const std::string& what) {
-  if (text.size() < 2 || text.front() != '{' || text.back() != '}') throw Error(fmt::format("{}: '{}' is not an array", what, text));
-  std::vector<float> out;
-  for (std::size_t start = 1; start < text.size() - 1;) {
-    const std::size_t end = std::min(text.find(',', start), text.size() - 1);
-    out.push_back(std::stof(text.substr(start, end - start)));
-    start = end + 1;
-  }
-  return out;
-}
 
 // Groups of submaps no index cell spans: two submaps whose boxes come within one index cell of
 // each other may bin entries into the same cell, so they are joined (union-find; a region holds
@@ -61,7 +50,7 @@ std::vector<RegionSubmap> FleetDatabase::region_catalog(const PullRequest& reque
     const std::string names = text_array(request.sessions);
     for (const pqxx::row& row : tx.exec_params(
              "SELECT m.session, m.submap, ST_XMin(m.footprint), ST_YMin(m.footprint), m.z_min, ST_XMax(m.footprint), "
-             "ST_YMax(m.footprint), m.z_max, m.embedding_centroid::text, m.embedding_radius "
+             "ST_YMax(m.footprint), m.z_max, m.embedding_centroid::text, m.embedding_radius, m.semantic_voxels "
              "FROM slamvdb.submaps m JOIN slamvdb.sessions s ON s.id = m.session "
              "WHERE m.shard = ANY($9::integer[]) AND m.footprint && ST_MakeEnvelope($1, $2, $3, $4, 0) "
              "AND m.z_max >= $5 AND m.z_min <= $6 AND ($7 OR s.name = ANY($8::text[])) ORDER BY s.id, m.submap",
@@ -72,8 +61,9 @@ std::vector<RegionSubmap> FleetDatabase::region_catalog(const PullRequest& reque
       s.bounds_fleet = Eigen::AlignedBox3d(Vec3d(row[2].as<double>(), row[3].as<double>(), row[4].as<double>()),
                                            Vec3d(row[5].as<double>(), row[6].as<double>(), row[7].as<double>()));
       if (!row[9].is_null())
-        s.cap = EmbeddingCap{search_float_array(row[8].c_str(), fmt::format("submap {} of session {}", s.key.second, s.key.first)),
+        s.cap = EmbeddingCap{parse_real_array(row[8].c_str(), fmt::format("submap {} of session {}", s.key.second, s.key.first)),
                              row[9].as<double>()};
+      s.semantic_voxels = row[10].as<std::size_t>();
       out.push_back(std::move(s));
     }
   } catch (const pqxx::failure& e) {

@@ -31,8 +31,15 @@ std::optional<EmbeddingCap> embedding_cap(const SemanticLayer& layer) {
   if (units.empty() || !(sum_norm > 0)) return std::nullopt;
   const Eigen::VectorXd centre = sum / sum_norm;
   EmbeddingCap cap;
-  for (const Eigen::VectorXd& u : units) cap.radius = std::max(cap.radius, cap_angle_between_units(centre, u));
   cap.centroid.assign(centre.data(), centre.data() + dim);
+  // The radius is measured from the stored (float) centroid, as cap_cosine_bound reads it: then it
+  // does not depend on the order the voxels were summed in (a submap in memory while mapping and
+  // the same submap read back from its file iterate differently; the double sums differ in the last
+  // bit, the float centroid and each voxel's angle do not), so `map --push` and `push` of the file
+  // store the same summary.
+  const Eigen::VectorXd stored = Eigen::Map<const Eigen::VectorXf>(cap.centroid.data(), dim).cast<double>();
+  const Eigen::VectorXd stored_unit = stored / stored.norm();
+  for (const Eigen::VectorXd& u : units) cap.radius = std::max(cap.radius, cap_angle_between_units(stored_unit, u));
   return cap;
 }
 
