@@ -83,7 +83,9 @@ void run(const Options& opt) {
                "margin alone\n",
                summary.statistics_unknown);
   if (!opt.csv.empty()) {
-    write_classified_csv(opt.csv, cells, queries, opt.min_confidence, &map.info().sessions);
+    // A fleet region classified by tiles has no map here, and the fleet stores no per-voxel
+    // session yet: its CSV has no last_session column (a map file's, pulled or not, has).
+    write_classified_csv(opt.csv, cells, queries, opt.min_confidence, map ? &map->info().sessions : nullptr);
     fmt::print("CSV  {}: {} rows\n", opt.csv, cells.size());
   }
   const std::vector<Rgb> colours = class_colours(queries);

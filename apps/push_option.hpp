@@ -16,14 +16,17 @@ namespace slamvdb::cli {
 struct PushOption {
   std::string url, session;
 
+  // Not configurable (as --serve): the map written is the same with or without them, so a config
+  // file and the map's recorded config do not carry a fleet's address.
   void add_to(CLI::App* cmd) {
-    cmd->add_option("--push", url,
+    const auto fleet = [](CLI::Option* o) { return o->configurable(false)->group("Fleet (--push)"); };
+    fleet(cmd->add_option("--push", url,
                     "Also push each finished submap into this fleet map as it finishes (a libpq connection string; "
                     "passwords from PGPASSFILE / ~/.pgpass or PGPASSWORD): one transaction per submap, loop "
                     "corrections as anchor updates; checked before mapping. The map file is written first: a push "
                     "failure stops pushing, not mapping, and the run ends with exit 1 and a complete map file "
-                    "(`slamvdb push` it to complete the fleet)");
-    cmd->add_option("--push-session", session, "The session's name in the fleet (default: the map file's name)");
+                    "(`slamvdb push` it to complete the fleet)"));
+    fleet(cmd->add_option("--push-session", session, "The session's name in the fleet (default: the map file's name)"));
   }
 
   // Connects, checks the map against the fleet and creates the session, before mapping starts

@@ -167,7 +167,17 @@ TEST(FleetQuery, QueryAndClassifyOnTheFleetAnswerAsOnThePulledFile) {
                              quote_path(queries) + box + " -o " + quote_path(fleet_c) + " 2>&1");
   ASSERT_EQ(c.exit_code, 0) << c.output;
   ASSERT_EQ(d.exit_code, 0) << d.output;
-  EXPECT_EQ(slamvdb::testing::read_text_file(fleet_c), slamvdb::testing::read_text_file(file_c));
+  // The file's CSV ends with last_session (the newest session that saw the voxel, issue 23); the
+  // fleet stores no per-voxel session yet, so classify --db by tiles writes the columns before it.
+  std::string file_rows = slamvdb::testing::read_text_file(file_c), without_last;
+  for (std::size_t at = 0; at < file_rows.size();) {
+    const std::size_t end = file_rows.find('\n', at);
+    const std::string line = file_rows.substr(at, end - at);
+    without_last += line.substr(0, line.rfind(',')) + "\n";
+    at = end == std::string::npos ? file_rows.size() : end + 1;
+  }
+  EXPECT_NE(file_rows.find(",last_session\n"), std::string::npos);
+  EXPECT_EQ(slamvdb::testing::read_text_file(fleet_c), without_last);
 
   const auto no_region = run_command(cli + "query --db " + url + " --vector " + quote_path(vector) + " 2>&1");
   EXPECT_EQ(no_region.exit_code, 2) << no_region.output;

@@ -199,7 +199,9 @@ TEST(LiveServe, MapServeGrowsAnswersUnderLoadAndSavesTheSameFile) {
   EXPECT_GE(last_changes, 3u);
   EXPECT_GE(added, counts.back() - counts.front());
   EXPECT_GE(progress, 2u);
-  EXPECT_FALSE(last_progress.at("mapping").get<bool>()) << last_progress.dump();
+  // The end of the drive reached the stream. Whether the stream also saw "mapping": false is a race:
+  // the server stops when mapping ends (without --serve-linger), and on an idle machine that can
+  // come before the last look's event is written (seen in the merged tree's Release run).
   EXPECT_EQ(last_progress.at("scans_done"), last_progress.at("scans_total"));
 
   // The file is the one a run without --serve writes.
