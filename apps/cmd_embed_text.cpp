@@ -13,9 +13,7 @@
 #include "slamvdb/core/text_escape.hpp"
 #include "slamvdb/inference/simulated_encoders.hpp"
 #include "slamvdb/io/npy.hpp"
-#ifdef SLAMVDB_WITH_TORCH
-#include "slamvdb/inference/torch_encoders.hpp"
-#endif
+#include "slamvdb/inference/torch_backend.hpp"
 
 namespace slamvdb::cli::cmd_embed_text {
 namespace {
@@ -32,11 +30,7 @@ struct Options {
 std::unique_ptr<TextEncoder> make_encoder(const Options& opt) {
   if (opt.simulated) return std::make_unique<SimulatedTextEncoder>();
   if (opt.model.empty()) throw Error("embed-text needs --model TEXT_MODEL.pt (or --simulated)");
-#ifdef SLAMVDB_WITH_TORCH
-  return std::make_unique<TorchTextEncoder>(opt.model, TorchEncoderOptions{.threads = opt.threads});
-#else
-  throw Error("this slamvdb was built without TorchScript support (-DSLAMVDB_WITH_TORCH=OFF); use --simulated");
-#endif
+  return open_torch_text_encoder(opt.model, TorchEncoderOptions{.threads = opt.threads});
 }
 
 void run(const Options& opt) {

@@ -22,9 +22,7 @@
 #include "slamvdb/core/error.hpp"
 #include "slamvdb/core/text_escape.hpp"
 #include "slamvdb/inference/simulated_encoders.hpp"
-#if SLAMVDB_WITH_TORCH
-#include "slamvdb/inference/torch_encoders.hpp"
-#endif
+#include "slamvdb/inference/torch_backend.hpp"
 #include "slamvdb/store/map_file_writer.hpp"
 #include "slamvdb/store/map_store.hpp"
 #include "slamvdb/io/sequence_reader.hpp"
@@ -77,15 +75,9 @@ std::unique_ptr<FeatureSource> make_feature_source(const Options& opt, const Sen
     throw Error("--model is given: use it with --features model");
   if (opt.features == "model") {
     if (opt.model.empty()) throw Error("--features model needs --model MODEL.pt (TorchScript dense encoder + manifest)");
-#if SLAMVDB_WITH_TORCH
-    TorchEncoderOptions torch_options;
-    torch_options.threads = opt.threads;
-    auto encoder = std::make_unique<TorchDenseImageEncoder>(opt.model, torch_options);
+    auto encoder = open_torch_dense_image_encoder(opt.model, TorchEncoderOptions{.threads = opt.threads});
     fmt::print("network {}: {}-d features\n", escape_control(encoder->model_id()), encoder->dim());
     return std::make_unique<EncoderFeatureSource>(std::move(encoder), EncoderFeatureSource::Input::kRgb);
-#else
-    throw Error("this slamvdb was built without TorchScript support (SLAMVDB_WITH_TORCH=OFF)");
-#endif
   }
   if (opt.features == "precomputed") {
     for (const auto& img : seq.images)

@@ -17,9 +17,7 @@
 #include "slamvdb/io/image_io.hpp"
 #include "slamvdb/inference/simulated_encoders.hpp"
 #include "slamvdb/io/npy.hpp"
-#ifdef SLAMVDB_WITH_TORCH
-#include "slamvdb/inference/torch_encoders.hpp"
-#endif
+#include "slamvdb/inference/torch_backend.hpp"
 
 namespace slamvdb::cli::cmd_segment {
 namespace {
@@ -47,12 +45,8 @@ Encoders make_encoders(const Options& opt) {
   if (opt.model.empty() || opt.text_model.empty()) {
     throw Error("segment needs --model and --text-model (or --simulated with --labels)");
   }
-#ifdef SLAMVDB_WITH_TORCH
-  return {std::make_unique<TorchDenseImageEncoder>(opt.model, TorchEncoderOptions{.threads = opt.threads}),
-          std::make_unique<TorchTextEncoder>(opt.text_model, TorchEncoderOptions{.threads = opt.threads})};
-#else
-  throw Error("this slamvdb was built without TorchScript support (-DSLAMVDB_WITH_TORCH=OFF); use --simulated");
-#endif
+  return {open_torch_dense_image_encoder(opt.model, TorchEncoderOptions{.threads = opt.threads}),
+          open_torch_text_encoder(opt.text_model, TorchEncoderOptions{.threads = opt.threads})};
 }
 
 std::vector<std::string> parse_classes(const std::string& list) {

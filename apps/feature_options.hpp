@@ -21,9 +21,7 @@
 #include "slamvdb/io/dataset.hpp"
 #include "slamvdb/pipeline/feature_source.hpp"
 #include "sim_encoder_options.hpp"
-#if SLAMVDB_WITH_TORCH
-#include "slamvdb/inference/torch_encoders.hpp"
-#endif
+#include "slamvdb/inference/torch_backend.hpp"
 
 namespace slamvdb::cli {
 
@@ -135,13 +133,9 @@ inline SimulatedEncoderConfig simulated_config(const FeatureOptions& o) {
 
 inline std::unique_ptr<FeatureSource> make_feature_source(const FeatureOptions& o, const Sequence& seq) {
   if (o.features == "model") {
-#if SLAMVDB_WITH_TORCH
-    auto encoder = std::make_unique<TorchDenseImageEncoder>(o.model, TorchEncoderOptions{.threads = o.threads});
+    auto encoder = open_torch_dense_image_encoder(o.model, TorchEncoderOptions{.threads = o.threads});
     spdlog::info("network {}: {}-d features", escape_control(encoder->model_id()), encoder->dim());
     return std::make_unique<EncoderFeatureSource>(std::move(encoder), EncoderFeatureSource::Input::kRgb);
-#else
-    throw Error("this slamvdb was built without TorchScript support (SLAMVDB_WITH_TORCH=OFF)");
-#endif
   }
   if (o.features == "precomputed") {
     for (const auto& img : seq.images)
@@ -162,11 +156,7 @@ inline std::unique_ptr<FeatureSource> make_feature_source(const FeatureOptions& 
 // features, else none.
 inline std::unique_ptr<TextEncoder> make_text_encoder(const FeatureOptions& o) {
   if (!o.text_model.empty()) {
-#if SLAMVDB_WITH_TORCH
-    return std::make_unique<TorchTextEncoder>(o.text_model, TorchEncoderOptions{.threads = o.threads});
-#else
-    throw Error("this slamvdb was built without TorchScript support (SLAMVDB_WITH_TORCH=OFF)");
-#endif
+    return open_torch_text_encoder(o.text_model, TorchEncoderOptions{.threads = o.threads});
   }
   if (o.features == "simulated") return std::make_unique<SimulatedTextEncoder>(simulated_config(o));
   return nullptr;

@@ -11,20 +11,12 @@
 #include "slamvdb/core/error.hpp"
 #include "slamvdb/inference/simulated_encoders.hpp"
 #include "slamvdb/io/query_image.hpp"
-#if SLAMVDB_WITH_TORCH
-#include "slamvdb/inference/torch_encoders.hpp"
-#endif
+#include "slamvdb/inference/torch_backend.hpp"
 
 namespace slamvdb::cli {
 
 inline std::unique_ptr<QueryImageEncoder> open_image_encoder(const std::string& image_model, int dim, uint64_t sim_seed) {
-  if (!image_model.empty()) {
-#if SLAMVDB_WITH_TORCH
-    return std::make_unique<QueryImageEncoder>(std::make_unique<TorchImageEncoder>(image_model), false);
-#else
-    throw Error("this slamvdb was built without TorchScript support (SLAMVDB_WITH_TORCH=OFF)");
-#endif
-  }
+  if (!image_model.empty()) return std::make_unique<QueryImageEncoder>(open_torch_image_encoder(image_model), false);
   SimulatedEncoderConfig sim;
   sim.dim = dim;
   sim.seed = sim_seed;

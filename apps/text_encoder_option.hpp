@@ -9,21 +9,13 @@
 
 #include "slamvdb/core/error.hpp"
 #include "slamvdb/inference/simulated_encoders.hpp"
-#if SLAMVDB_WITH_TORCH
-#include "slamvdb/inference/torch_encoders.hpp"
-#endif
+#include "slamvdb/inference/torch_backend.hpp"
 
 namespace slamvdb::cli {
 
 inline std::unique_ptr<TextEncoder> open_text_encoder(const std::string& text_model, int dim, uint64_t sim_seed,
                                                       float sim_text_gap) {
-  if (!text_model.empty()) {
-#if SLAMVDB_WITH_TORCH
-    return std::make_unique<TorchTextEncoder>(text_model);
-#else
-    throw Error("this slamvdb was built without TorchScript support (SLAMVDB_WITH_TORCH=OFF)");
-#endif
-  }
+  if (!text_model.empty()) return open_torch_text_encoder(text_model);
   SimulatedEncoderConfig sim;
   sim.dim = dim;
   sim.seed = sim_seed;

@@ -18,6 +18,11 @@ install(TARGETS ${installed_targets} EXPORT slamvdbTargets
         ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR}
         INCLUDES DESTINATION ${CMAKE_INSTALL_INCLUDEDIR})
 install(TARGETS slamvdb_cli RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR})
+# The CLI's plugins (core/plugin_library.hpp), where it looks for them relative to its own folder.
+get_property(slamvdb_plugins GLOBAL PROPERTY SLAMVDB_PLUGINS)
+if(slamvdb_plugins)
+  install(TARGETS ${slamvdb_plugins} LIBRARY DESTINATION ${CMAKE_INSTALL_LIBDIR}/slamvdb)
+endif()
 
 set(config_dir ${CMAKE_INSTALL_LIBDIR}/cmake/slamvdb)
 install(EXPORT slamvdbTargets NAMESPACE slamvdb:: DESTINATION ${config_dir})

@@ -33,3 +33,19 @@ function(slamvdb_part name)
   set_property(GLOBAL APPEND PROPERTY SLAMVDB_TEST_SOURCES ${tests})
   set_property(GLOBAL APPEND PROPERTY SLAMVDB_TEST_LIBRARIES ${P_TEST_DEPS})
 endfunction()
+
+# slamvdb_plugin(<name> <entry source> <libraries>...)
+# Builds the plugin library libslamvdb_<name>.so (core/plugin_library.hpp: loaded at run time, only
+# by the runs that need it) beside the executables, from <entry source> and the (static, PIC)
+# <libraries>; only the entry point's symbols are exported. The CLI depends on it (it is built with
+# `ninja slamvdb`) and it is installed in lib/slamvdb.
+function(slamvdb_plugin name entry)
+  set(target slamvdb_${name})
+  add_library(${target} MODULE ${entry})
+  target_link_libraries(${target} PRIVATE ${ARGN})
+  set_target_properties(${target} PROPERTIES LIBRARY_OUTPUT_DIRECTORY ${CMAKE_BINARY_DIR}
+    CXX_VISIBILITY_PRESET hidden VISIBILITY_INLINES_HIDDEN ON)
+  # Every symbol resolved at link time: a missing one is a build error, not a failure at dlopen.
+  target_link_options(${target} PRIVATE -Wl,--no-undefined)
+  set_property(GLOBAL APPEND PROPERTY SLAMVDB_PLUGINS ${target})
+endfunction()

@@ -1,7 +1,8 @@
 #pragma once
 // The real networks: TorchScript modules (MODEL.pt) described by a manifest (MODEL.json, see
 // model_manifest.hpp), run on the CPU with libtorch. Only torch_encoders.cpp includes torch
-// headers, so everything else compiles without them. Built when SLAMVDB_WITH_TORCH is on.
+// headers, so everything else compiles without them. Built when SLAMVDB_WITH_TORCH is on, into the
+// plugin library that torch_backend.hpp loads (the CLI) and into slamvdb_torch (Python, tests).
 //
 // Every encoder: checks the manifest against the network with one dummy pass on construction
 // (warm-up), pre-processes images in C++ exactly as the manifest says, runs without autograd,
@@ -14,13 +15,9 @@
 
 #include "slamvdb/inference/encoders.hpp"
 #include "slamvdb/inference/model_manifest.hpp"
+#include "slamvdb/inference/torch_backend.hpp"  // TorchEncoderOptions
 
 namespace slamvdb {
-
-struct TorchEncoderOptions {
-  int threads = -1;     // libtorch intra-op threads; -1 takes the manifest's runtime.threads
-  bool warm_up = true;  // one dummy pass on construction, checking the output against the manifest
-};
 
 // image -> per-pixel embeddings (LSeg): the network maps N x 3 x H x W to N x C x h x w.
 class TorchDenseImageEncoder final : public DenseImageEncoder {

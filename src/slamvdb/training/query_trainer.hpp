@@ -2,10 +2,13 @@
 // Query-vector optimisation (paper section 6.2.5, Figure 6.4): the n x dim query matrix is the
 // only parameter; the encoders stay frozen. Loss as in LSeg: softmax cross-entropy over the
 // temperature-scaled cosine similarities of each pixel's feature with every query. libtorch's
-// autograd and Adam do the optimisation; only query_trainer.cpp includes torch headers.
+// autograd and Adam do the optimisation, in the TorchScript backend's plugin library
+// (query_trainer_torch.cpp, loaded on first use: core/plugin_library.hpp); this side, with the
+// checks and the shuffling, includes no torch header.
 #include <cstdint>
 #include <functional>
 #include <memory>
+#include <span>
 
 #include "slamvdb/query/query_set.hpp"
 #include "slamvdb/training/pixel_samples.hpp"
@@ -42,8 +45,28 @@ class QueryTrainer {
   int epochs_done() const;
 
  private:
-  struct Impl;
-  std::unique_ptr<Impl> impl_;
+  std::unique_ptr<class QueryTrainerEngine> engine_;
+  TrainerOptions options_;
+  int classes_ = 0, dim_ = 0, epoch_ = 0;
 };
+
+// What the backend implements, after QueryTrainer's checks: the optimiser over rows that are unit
+// vectors, in batches of the given order.
+class QueryTrainerEngine {
+ public:
+  virtual ~QueryTrainerEngine() = default;
+  virtual double train_epoch(const PixelSamples& samples, std::span<const std::size_t> order,
+                             const StepProgress& progress) = 0;
+  virtual double loss(const PixelSamples& samples) const = 0;
+  virtual QueryMatrix queries() const = 0;
+};
+
+// What the backend library exports, by kQueryTrainerSymbol; the version is checked.
+struct QueryTrainerFactory {
+  int version = 0;
+  std::unique_ptr<QueryTrainerEngine> (*make)(const QueryMatrix& unit_rows, const TrainerOptions& options) = nullptr;
+};
+inline constexpr int kQueryTrainerVersion = 1;
+inline constexpr const char* kQueryTrainerSymbol = "slamvdb_query_trainer_factory";
 
 }  // namespace slamvdb

@@ -1,0 +1,21 @@
+#pragma once
+// The project's own shared libraries that are loaded only when a command needs them (dlopen), so
+// that every other run does not pay for what they link. The TorchScript backend is one: linking
+// libtorch into the CLI cost 0.7-1.0 s of CPU at every start (its static initialisers register
+// thousands of operators), in every command, also `--help`, whether or not a network ran.
+//
+// Where a plugin is looked for, in this order (the first file that exists is loaded):
+//   1. the directory of the running executable: the build tree puts plugins beside the CLI;
+//   2. that directory + SLAMVDB_PLUGIN_RELDIR: an installed CLI (bin/ -> lib/slamvdb/);
+//   3. the build tree's directory, compiled in: the Python module and programs run from elsewhere.
+// Hand-written (a dozen lines over dlopen/dlsym): no Debian library does only this.
+#include <string>
+
+namespace slamvdb {
+
+// The address of `symbol` in the plugin library `file` (e.g. "libslamvdb_torch_inference.so"),
+// loaded on first use and kept loaded for the life of the process. Throws Error naming `what`
+// (what the plugin is for), every place looked in, and the loader's reason.
+void* plugin_symbol(const std::string& file, const char* symbol, const std::string& what);
+
+}  // namespace slamvdb
