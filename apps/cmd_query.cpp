@@ -142,7 +142,8 @@ void run_points(const Options& opt, const SemanticMap& map, const std::vector<Ve
   ClassifyOptions options;
   options.void_to_second_best = !opt.no_void_rule;
   const auto answers = query_points(map, points, queries ? &*queries : nullptr, options,
-                                    opt.ignore_model_id ? ModelIdCheck::kIgnore : ModelIdCheck::kRequireMatch);
+                                    opt.ignore_model_id ? ModelIdCheck::kIgnore : ModelIdCheck::kRequireMatch,
+                                    /*with_embeddings=*/false);
   // weight / spread: the cell's observation statistics (spread S/W, empty for a map file before format
   // 3); confidence: voxel_confidence of the class (with a query set); last_session: the name of the
   // newest session that observed the cell (issue 23).

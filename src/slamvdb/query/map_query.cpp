@@ -244,7 +244,8 @@ void sort_by_cell(std::vector<ClassifiedCell>& cells) {
 }
 
 std::vector<PointQuery> query_points(const SemanticMap& map, std::span<const Vec3d> points_world,
-                                     const QuerySet* queries, const ClassifyOptions& options, ModelIdCheck model_check) {
+                                     const QuerySet* queries, const ClassifyOptions& options, ModelIdCheck model_check,
+                                     bool with_embeddings) {
   std::optional<QueryClassifier> classifier;
   if (queries) {
     check_compatible(*queries, map.params().semantic.dim, map.info().model_id, model_check);
@@ -254,7 +255,7 @@ std::vector<PointQuery> query_points(const SemanticMap& map, std::span<const Vec
   std::vector<PointQuery> out(points_world.size());
   const SessionOrder sessions(map.info().sessions);
   map.read_index([&](const GlobalIndex& index) {
-    std::vector<float> scratch(dim);
+    std::vector<float> scratch(dim), mean(dim);
     for (std::size_t i = 0; i < points_world.size(); ++i) {
       if (i % 1024 == 0) options.deadline.check("looking up points");
       PointQuery& q = out[i];
@@ -272,11 +273,12 @@ std::vector<PointQuery> query_points(const SemanticMap& map, std::span<const Vec
       q.entries = v.entries;
       q.last_session = last_session_of_cell(index, *at, sessions);
       q.last_session_name = session_name(map.info().sessions, q.last_session);
-      q.embedding.resize(dim);
-      kernels::decode(v.embedding, q.embedding.data(), dim);
+      if (!with_embeddings && !classifier) continue;
+      kernels::decode(v.embedding, mean.data(), dim);
+      if (with_embeddings) q.embedding = mean;
       if (classifier) {
         QueryMatch m;
-        classifier->classify(q.embedding.data(), 1, &m);
+        classifier->classify(mean.data(), 1, &m);
         q.match = m;
         q.confidence = voxel_confidence(m, q.count, q.stats);
       }

@@ -117,7 +117,7 @@ struct PointQuery {
   Vec3d cell_centre = Vec3d::Zero();
   uint32_t count = 0;
   uint32_t entries = 0;       // submap entries averaged into the cell
-  std::vector<float> embedding;  // the cell's count-weighted mean, fp32
+  std::vector<float> embedding;  // the cell's count-weighted mean, fp32 (empty unless asked for)
   VoxelStatistics stats{};      // the cell's observation statistics (spread NaN: map before format 3)
   std::optional<QueryMatch> match;  // with a query set
   float confidence = 0.f;       // voxel_confidence of the match (with a query set)
@@ -125,9 +125,12 @@ struct PointQuery {
   std::string last_session_name;  // its name (session_name)
 };
 
+// `with_embeddings`: fill PointQuery::embedding (2 KB per 512-d point: left out where the caller
+// does not use it, e.g. `query --at`'s CSV and POST /api/at without "embedding": true).
 std::vector<PointQuery> query_points(const SemanticMap& map, std::span<const Vec3d> points_world,
                                      const QuerySet* queries = nullptr, const ClassifyOptions& options = {},
-                                     ModelIdCheck model_check = ModelIdCheck::kRequireMatch);
+                                     ModelIdCheck model_check = ModelIdCheck::kRequireMatch,
+                                     bool with_embeddings = true);
 
 // The map's embedding-space check for a vector that did not come from a query set.
 void check_query_vector(const SemanticMap& map, std::span<const float> query);

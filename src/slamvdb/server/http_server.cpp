@@ -196,7 +196,8 @@ void MapServer::Impl::add_routes() {
       {"/api/at", "POST", limit,
        [this](const httplib::Request& req, httplib::Response& res) {
          const AtRequest request = decode_at_request(req.body, options.limits);
-         send_json(res, 200, answer_at(within_budget(), request));
+         res.status = 200;
+         res.set_content(answer_at(within_budget(), request), kJson);
        }},
       {"/api/classes", "GET", limit,
        [this](const httplib::Request& req, httplib::Response& res) {

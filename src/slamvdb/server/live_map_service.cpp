@@ -218,8 +218,11 @@ MapService::SearchAnswer LiveMapService::search(std::span<const float> query, co
 }
 
 std::vector<PointQuery> LiveMapService::at(std::span<const Vec3d> points_world, const QuerySet* queries,
-                                           const ClassifyOptions& options, ModelIdCheck model_check) const {
-  return read([&](const SemanticMapService& m) { return m.at(points_world, queries, options, model_check); });
+                                           const ClassifyOptions& options, ModelIdCheck model_check,
+                                           bool with_embeddings) const {
+  return read([&](const SemanticMapService& m) {
+    return m.at(points_world, queries, options, model_check, with_embeddings);
+  });
 }
 
 void LiveMapService::classify(const QuerySet& queries, std::span<ScoredCell> results, const ClassifyOptions& options,

@@ -49,7 +49,8 @@ class LiveMapService final : public MapService {
   nlohmann::json info() const override;
   SearchAnswer search(std::span<const float> query, const SearchOptions& options, bool exact) const override;
   std::vector<PointQuery> at(std::span<const Vec3d> points_world, const QuerySet* queries,
-                             const ClassifyOptions& options, ModelIdCheck model_check) const override;
+                             const ClassifyOptions& options, ModelIdCheck model_check,
+                             bool with_embeddings) const override;
   void classify(const QuerySet& queries, std::span<ScoredCell> results, const ClassifyOptions& options,
                 ModelIdCheck model_check) const override;
   std::vector<ClassifiedCell> classes(const QuerySet& queries, const QueryRegion& region,

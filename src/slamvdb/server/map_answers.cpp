@@ -2,7 +2,9 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <cmath>
+#include <iterator>
 
 #include "slamvdb/query/class_summary.hpp"
 
@@ -129,32 +131,114 @@ nlohmann::json answer_query(const AnswerContext& context, const QueryRequest& re
   return answer;
 }
 
-nlohmann::json answer_at(const AnswerContext& context, const AtRequest& request) {
-  const std::vector<PointQuery> answers =
-      context.map->at(request.points, context.queries, context.classify, context.model_check);
-  nlohmann::json rows = nlohmann::json::array();
-  std::size_t found = 0;
-  for (const PointQuery& a : answers) {
-    found += a.found;
-    const bool has_class = a.match && a.match->class_index != kNoClass;
-    nlohmann::json row = {
-        {"point", {a.point_world.x(), a.point_world.y(), a.point_world.z()}},
-        {"found", a.found},
-        {"cell", a.found ? nlohmann::json({a.cell_centre.x(), a.cell_centre.y(), a.cell_centre.z()}) : nlohmann::json()},
-        {"count", a.count},
-        {"class", has_class ? nlohmann::json(context.queries->names[static_cast<std::size_t>(a.match->class_index)])
-                            : nlohmann::json()},
-        {"score", a.match ? nlohmann::json(a.match->score) : nlohmann::json()},
-        {"margin", a.match ? nlohmann::json(a.match->margin) : nlohmann::json()},
-        {"weight", a.found ? nlohmann::json(a.stats.weight) : nlohmann::json()},
-        {"spread", a.found && a.stats.known() && a.stats.weight > 0 ? nlohmann::json(a.stats.spread / a.stats.weight)
-                                                                    : nlohmann::json()},
-        {"confidence", a.match ? nlohmann::json(a.confidence) : nlohmann::json()},
-        {"last_session", a.found ? nlohmann::json(a.last_session_name) : nlohmann::json()}};
-    if (request.embedding) row["embedding"] = a.found ? nlohmann::json(a.embedding) : nlohmann::json();
-    rows.push_back(std::move(row));
+namespace {
+
+// A number as nlohmann's dump writes a double (floats widened first, as the DOM stores them): the
+// shortest text that reads back as the same double, "null" when not finite. fmt's "{}" gives the
+// same digits; an integral value is written without nlohmann's ".0" (the same JSON number).
+void append_number(fmt::memory_buffer& out, double x) {
+  if (std::isfinite(x)) {
+    fmt::format_to(std::back_inserter(out), "{}", x);
+  } else {
+    out.append(std::string_view("null"));
   }
-  return {{"encoder", encoder_json(context)}, {"count", answers.size()}, {"found", found}, {"results", std::move(rows)}};
+}
+
+void append_text(fmt::memory_buffer& out, const std::string& text) {
+  const std::string quoted = nlohmann::json(text).dump(-1, ' ', false, nlohmann::json::error_handler_t::replace);
+  out.append(quoted);
+}
+
+void append_vec3(fmt::memory_buffer& out, const Vec3d& v) {
+  out.push_back('[');
+  append_number(out, v.x());
+  out.push_back(',');
+  append_number(out, v.y());
+  out.push_back(',');
+  append_number(out, v.z());
+  out.push_back(']');
+}
+
+// One row of POST /api/at, keys in sorted order as the DOM wrote them.
+void append_at_row(fmt::memory_buffer& out, const PointQuery& a, const std::vector<std::string>& class_texts,
+                   bool with_embedding) {
+  const auto key = [&out](std::string_view k) {
+    out.push_back('"');
+    out.append(k);
+    out.append(std::string_view("\":"));
+  };
+  const auto null = [&out] { out.append(std::string_view("null")); };
+  const bool has_class = a.match && a.match->class_index != kNoClass;
+  out.push_back('{');
+  key("cell");
+  a.found ? append_vec3(out, a.cell_centre) : null();
+  out.push_back(',');
+  key("class");
+  has_class ? out.append(class_texts[static_cast<std::size_t>(a.match->class_index)]) : null();
+  out.push_back(',');
+  key("confidence");
+  a.match ? append_number(out, a.confidence) : null();
+  out.push_back(',');
+  key("count");
+  fmt::format_to(std::back_inserter(out), "{}", a.count);
+  out.push_back(',');
+  if (with_embedding) {
+    key("embedding");
+    if (a.found) {
+      out.push_back('[');
+      for (std::size_t k = 0; k < a.embedding.size(); ++k) {
+        if (k) out.push_back(',');
+        append_number(out, a.embedding[k]);
+      }
+      out.push_back(']');
+    } else {
+      null();
+    }
+    out.push_back(',');
+  }
+  key("found");
+  out.append(std::string_view(a.found ? "true" : "false"));
+  out.push_back(',');
+  key("last_session");
+  a.found ? append_text(out, a.last_session_name) : null();
+  out.push_back(',');
+  key("margin");
+  a.match ? append_number(out, a.match->margin) : null();
+  out.push_back(',');
+  key("point");
+  append_vec3(out, a.point_world);
+  out.push_back(',');
+  key("score");
+  a.match ? append_number(out, a.match->score) : null();
+  out.push_back(',');
+  key("spread");
+  a.found && a.stats.known() && a.stats.weight > 0 ? append_number(out, a.stats.spread / a.stats.weight) : null();
+  out.push_back(',');
+  key("weight");
+  a.found ? append_number(out, a.stats.weight) : null();
+  out.push_back('}');
+}
+
+}  // namespace
+
+std::string answer_at(const AnswerContext& context, const AtRequest& request) {
+  const std::vector<PointQuery> answers =
+      context.map->at(request.points, context.queries, context.classify, context.model_check, request.embedding);
+  std::vector<std::string> class_texts;  // each class name quoted and escaped once
+  if (context.queries)
+    for (const std::string& name : context.queries->names) class_texts.push_back(nlohmann::json(name).dump(
+        -1, ' ', false, nlohmann::json::error_handler_t::replace));
+  const std::size_t found =
+      static_cast<std::size_t>(std::count_if(answers.begin(), answers.end(), [](const PointQuery& a) { return a.found; }));
+  fmt::memory_buffer out;
+  fmt::format_to(std::back_inserter(out), R"({{"count":{},"encoder":{},"found":{},"results":[)", answers.size(),
+                 encoder_json(context).dump(-1, ' ', false, nlohmann::json::error_handler_t::replace), found);
+  for (std::size_t i = 0; i < answers.size(); ++i) {
+    if (i) out.push_back(',');
+    append_at_row(out, answers[i], class_texts, request.embedding);
+  }
+  out.append(std::string_view("]}"));
+  return fmt::to_string(out);
 }
 
 nlohmann::json answer_classes(const AnswerContext& context, const ClassesRequest& request, std::size_t max_cells) {

@@ -81,8 +81,9 @@ void SemanticMapService::classify(const QuerySet& queries, std::span<ScoredCell>
 }
 
 std::vector<PointQuery> SemanticMapService::at(std::span<const Vec3d> points_world, const QuerySet* queries,
-                                               const ClassifyOptions& options, ModelIdCheck model_check) const {
-  return query_points(*map_, points_world, queries, options, model_check);
+                                               const ClassifyOptions& options, ModelIdCheck model_check,
+                                               bool with_embeddings) const {
+  return query_points(*map_, points_world, queries, options, model_check, with_embeddings);
 }
 
 std::vector<ClassifiedCell> SemanticMapService::classes(const QuerySet& queries, const QueryRegion& region,

@@ -44,7 +44,8 @@ class MapService {
   virtual SearchAnswer search(std::span<const float> query, const SearchOptions& options, bool exact) const = 0;
   // query_points over the map (what `query --at` answers), with classes when `queries` is given.
   virtual std::vector<PointQuery> at(std::span<const Vec3d> points_world, const QuerySet* queries,
-                                     const ClassifyOptions& options, ModelIdCheck model_check) const = 0;
+                                     const ClassifyOptions& options, ModelIdCheck model_check,
+                                     bool with_embeddings) const = 0;
   // classify_results over the map, for answers that carry a class (a query set given to the server).
   virtual void classify(const QuerySet& queries, std::span<ScoredCell> results, const ClassifyOptions& options,
                         ModelIdCheck model_check) const = 0;
@@ -105,7 +106,8 @@ class SemanticMapService final : public MapService {
   void classify(const QuerySet& queries, std::span<ScoredCell> results, const ClassifyOptions& options,
                 ModelIdCheck model_check) const override;
   std::vector<PointQuery> at(std::span<const Vec3d> points_world, const QuerySet* queries,
-                             const ClassifyOptions& options, ModelIdCheck model_check) const override;
+                             const ClassifyOptions& options, ModelIdCheck model_check,
+                             bool with_embeddings) const override;
   std::vector<ClassifiedCell> classes(const QuerySet& queries, const QueryRegion& region,
                                       const ClassifyOptions& options, ModelIdCheck model_check) const override;
   std::size_t region_cells(const QueryRegion& region) const override;
