@@ -4,7 +4,6 @@
 
 #include <cstdio>
 #include <memory>
-#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include "command_registry.hpp"
@@ -18,6 +17,7 @@
 #include "slamvdb/inference/simulated_encoders.hpp"
 #include "slamvdb/io/npy.hpp"
 #include "slamvdb/inference/torch_backend.hpp"
+#include "slamvdb/io/image_codecs.hpp"
 
 namespace slamvdb::cli::cmd_segment {
 namespace {
@@ -103,7 +103,7 @@ cv::Mat best_class(const FeatureMap& features, const std::vector<std::vector<flo
 
 void write_png_atomically(const fs::path& path, const cv::Mat& image) {
   std::vector<uchar> png;
-  if (!cv::imencode(".png", image, png)) throw Error(fmt::format("cannot encode {}", path.string()));
+  if (!encode_image(".png", image, png)) throw Error(fmt::format("cannot encode {}", path.string()));
   write_output_file(path, std::string_view(reinterpret_cast<const char*>(png.data()), png.size()));
 }
 

@@ -8,6 +8,10 @@
 # in shards), not one process per test as under CTest, so that a suite's set-up is not repeated.
 set -euo pipefail
 cd "$(dirname "$0")/.."
+# OpenBLAS (Ceres' SuiteSparse links it) starts a worker thread in every process, which spins on
+# sched_yield for a while even in runs that never call BLAS: on 2 cores, beside the other test job,
+# in each of the ~600 CLI starts of the suite. Nothing here needs a parallel BLAS.
+export OPENBLAS_NUM_THREADS=${OPENBLAS_NUM_THREADS:-1}
 scripts/build_asan.sh
 # detect_stack_use_after_return stays at ASan's default (off): it doubled the suite's CPU time
 # (measured on LoopClosingMapper.VerificationRejectsAWrongCandidate: 29 s -> 14.5 s); turn it on for

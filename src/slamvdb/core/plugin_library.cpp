@@ -58,4 +58,11 @@ void* plugin_symbol(const std::string& file, const char* symbol, const std::stri
                           what, file, looked));
 }
 
+void check_plugin_version(const std::string& file, const std::string& what, int found, int expected) {
+  if (found != expected)
+    throw Error(fmt::format("{}: {} is version {}, this slamvdb needs {}: it is from another build (rebuild or "
+                            "reinstall both)",
+                            what, file, found, expected));
+}
+
 }  // namespace slamvdb

@@ -18,4 +18,19 @@ namespace slamvdb {
 // (what the plugin is for), every place looked in, and the loader's reason.
 void* plugin_symbol(const std::string& file, const char* symbol, const std::string& what);
 
+// Throws Error if a plugin's table is of another version than this build's (a library from
+// another build: "rebuild or reinstall both").
+void check_plugin_version(const std::string& file, const std::string& what, int found, int expected);
+
+// The table of functions a plugin exports through `symbol`, an extern "C" function returning
+// `const Table*` whose first member is `int version`; checked against `expected_version`.
+template <class Table>
+const Table& plugin_exports(const std::string& file, const char* symbol, const std::string& what,
+                            int expected_version) {
+  using Entry = const Table* (*)();
+  const Table* table = reinterpret_cast<Entry>(plugin_symbol(file, symbol, what))();
+  check_plugin_version(file, what, table->version, expected_version);
+  return *table;
+}
+
 }  // namespace slamvdb

@@ -1,5 +1,6 @@
 #include "slamvdb/core/plugin_library.hpp"
 
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 
 #include "slamvdb/core/error.hpp"
@@ -34,6 +35,29 @@ TEST(PluginLibrary, TheTorchScriptBackendIsFoundAndAMissingSymbolIsAnError) {
   }
 }
 #endif
+
+// The image codecs' plugin (every build has it) is found and its table has this build's version; a
+// table of another version is an Error naming the file and both versions, before any call.
+struct TestTable {
+  int version = 0;
+};
+TEST(PluginLibrary, TheImageCodecsAreFoundAndAnotherVersionIsRefused) {
+  void* entry = plugin_symbol("libslamvdb_image_codecs.so", "slamvdb_image_codecs", "codecs");
+  ASSERT_NE(entry, nullptr);
+  const int version = reinterpret_cast<const TestTable* (*)()>(entry)()->version;
+  EXPECT_GE(version, 1);
+  EXPECT_EQ(&plugin_exports<TestTable>("libslamvdb_image_codecs.so", "slamvdb_image_codecs", "codecs", version),
+            reinterpret_cast<const TestTable* (*)()>(entry)());
+  try {
+    plugin_exports<TestTable>("libslamvdb_image_codecs.so", "slamvdb_image_codecs", "codecs", version + 1);
+    FAIL() << "no error";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find(fmt::format("libslamvdb_image_codecs.so is version {}, this slamvdb needs {}",
+                                                     version, version + 1)),
+              std::string::npos)
+        << e.what();
+  }
+}
 
 }  // namespace
 }  // namespace slamvdb

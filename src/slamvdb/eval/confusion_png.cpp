@@ -3,11 +3,11 @@
 #include <fmt/format.h>
 
 #include <algorithm>
-#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include "slamvdb/core/error.hpp"
 #include "slamvdb/core/output_file.hpp"
+#include "slamvdb/io/image_codecs.hpp"
 
 namespace slamvdb {
 namespace {
@@ -96,7 +96,7 @@ void write_confusion_png(const std::filesystem::path& file, const ConfusionMatri
   // cv::imwrite, which neither says why a write failed nor writes atomically.
   std::vector<uchar> png;
   try {
-    if (!cv::imencode(".png", img, png)) throw Error(fmt::format("cannot encode {} as PNG", file.string()));
+    if (!encode_image(".png", img, png)) throw Error(fmt::format("cannot encode {} as PNG", file.string()));
   } catch (const cv::Exception& e) {
     throw Error(fmt::format("cannot encode {} as PNG: {}", file.string(), e.what()));
   }

@@ -1,6 +1,5 @@
 #include "slamvdb/inference/torch_backend.hpp"
 
-#include <fmt/format.h>
 
 #include "slamvdb/core/error.hpp"
 #include "slamvdb/core/plugin_library.hpp"
@@ -10,18 +9,9 @@ namespace {
 
 const TorchEncoderFactories& torch_encoders() {
 #ifdef SLAMVDB_TORCH_INFERENCE_PLUGIN
-  static const TorchEncoderFactories* factories = [] {
-    using Entry = const TorchEncoderFactories* (*)();
-    const auto entry = reinterpret_cast<Entry>(
-        plugin_symbol(SLAMVDB_TORCH_INFERENCE_PLUGIN, kTorchEncodersSymbol, "the TorchScript backend"));
-    const TorchEncoderFactories* f = entry();
-    if (f->version != kTorchEncodersVersion)
-      throw Error(fmt::format("the TorchScript backend {} is version {}, this slamvdb needs {}: it is from another "
-                              "build (rebuild or reinstall both)",
-                              SLAMVDB_TORCH_INFERENCE_PLUGIN, f->version, kTorchEncodersVersion));
-    return f;
-  }();
-  return *factories;
+  static const TorchEncoderFactories& factories = plugin_exports<TorchEncoderFactories>(
+      SLAMVDB_TORCH_INFERENCE_PLUGIN, kTorchEncodersSymbol, "the TorchScript backend", kTorchEncodersVersion);
+  return factories;
 #else
   throw Error("this slamvdb was built without TorchScript support (SLAMVDB_WITH_TORCH=OFF)");
 #endif

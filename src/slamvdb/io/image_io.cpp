@@ -7,11 +7,12 @@
 #include <array>
 #include <cstring>
 #include <map>
-#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgcodecs.hpp>  // the cv::ImreadModes flags
 #include <opencv2/imgproc.hpp>
 
 #include "slamvdb/core/error.hpp"
 #include "slamvdb/core/regular_file.hpp"
+#include "slamvdb/io/image_codecs.hpp"
 
 namespace slamvdb {
 
@@ -95,7 +96,7 @@ cv::Mat decode_checked_image(std::string_view bytes, const std::string& name, in
                             size->width, size->height, megapixels(*size), static_cast<double>(max_pixels) / 1e6));
   cv::Mat image;
   try {
-    image = cv::imdecode(cv::Mat(1, static_cast<int>(bytes.size()), CV_8UC1, const_cast<char*>(bytes.data())),
+    image = decode_image(cv::Mat(1, static_cast<int>(bytes.size()), CV_8UC1, const_cast<char*>(bytes.data())),
                          flags | kNoExifRotation);
   } catch (const cv::Exception& e) {
     throw Error(fmt::format("cannot decode {} {}: {}", kind, name, e.what()));

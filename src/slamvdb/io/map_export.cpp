@@ -17,7 +17,6 @@
 #include <fstream>
 #include <iterator>
 #include <limits>
-#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <tuple>
 

@@ -4,11 +4,11 @@
 
 #include <algorithm>
 #include <cmath>
-#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include "slamvdb/core/error.hpp"
 #include "slamvdb/core/output_file.hpp"
+#include "slamvdb/io/image_codecs.hpp"
 
 namespace slamvdb {
 namespace {
@@ -166,7 +166,7 @@ void write_image_atomically(const std::filesystem::path& path, const cv::Mat& im
   cv::Mat out = image;
   if (image.channels() == 3) cv::cvtColor(image, out, cv::COLOR_RGB2BGR);
   std::vector<uint8_t> bytes;
-  if (!cv::imencode(extension, out, bytes)) throw Error(fmt::format("cannot encode {}", path.string()));
+  if (!encode_image(extension, out, bytes)) throw Error(fmt::format("cannot encode {}", path.string()));
   write_output_file(path, std::string_view(reinterpret_cast<const char*>(bytes.data()), bytes.size()));
 }
 

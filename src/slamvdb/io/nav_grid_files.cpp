@@ -3,11 +3,11 @@
 #include <fmt/format.h>
 
 #include <opencv2/core.hpp>
-#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include "slamvdb/core/error.hpp"
 #include "slamvdb/core/output_file.hpp"
+#include "slamvdb/io/image_codecs.hpp"
 
 namespace slamvdb {
 
@@ -22,7 +22,7 @@ std::string encoded_image(const cv::Mat& image, const char* extension) {
   cv::Mat out = image;
   if (image.channels() == 3) cv::cvtColor(image, out, cv::COLOR_RGB2BGR);
   std::vector<uint8_t> bytes;
-  if (!cv::imencode(extension, out, bytes)) throw Error(fmt::format("cannot encode the navigation grid as {}", extension));
+  if (!encode_image(extension, out, bytes)) throw Error(fmt::format("cannot encode the navigation grid as {}", extension));
   return {reinterpret_cast<const char*>(bytes.data()), bytes.size()};
 }
 

@@ -4,11 +4,11 @@
 #include <fmt/std.h>
 
 #include <cmath>
-#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include "slamvdb/core/error.hpp"
 #include "slamvdb/core/output_file.hpp"
+#include "slamvdb/io/image_codecs.hpp"
 
 namespace slamvdb {
 
@@ -65,7 +65,7 @@ void write_trajectory_plot(const std::filesystem::path& png, const std::vector<P
   // Encoded in memory and written by the one output writer (core/output_file.hpp).
   std::vector<uchar> bytes;
   try {
-    if (!cv::imencode(".png", image, bytes)) throw Error(fmt::format("cannot encode {} as PNG", png));
+    if (!encode_image(".png", image, bytes)) throw Error(fmt::format("cannot encode {} as PNG", png));
   } catch (const cv::Exception& e) {
     throw Error(fmt::format("cannot encode {} as PNG: {}", png, e.what()));
   }

@@ -2,13 +2,15 @@
 // each, mixing the routes (query by class, at, classes, nav-grid), more clients than
 // --max-concurrent. Every answer is a 200 or the documented 503 (with Retry-After), never another
 // status or a dropped connection; the server answers /healthz afterwards and stops cleanly.
-// Latency p50/p99 is printed (bench/bench_serve.cpp measures it on a million cells); p99 stays
-// under the 1 s a client waits when the listen backlog overflows.
+// Latency p50/p99 is printed (bench/bench_serve.cpp measures it on a million cells). No connection
+// overflowed the listen backlog (the kernel's count; such a client waits 1 s for its SYN's resend).
 #include <fmt/format.h>
 #include <gtest/gtest.h>
 
 #include <algorithm>
 #include <chrono>
+#include <fstream>
+#include <sstream>
 #include <mutex>
 #include <thread>
 
@@ -16,6 +18,20 @@
 
 namespace slamvdb {
 namespace {
+
+// The kernel's count of connections dropped because a listen backlog was full (TcpExt
+// ListenOverflows in /proc/net/netstat, for the whole machine); -1 where it cannot be read.
+long long listen_overflows() {
+  std::ifstream netstat("/proc/net/netstat");
+  std::string names, values;
+  while (std::getline(netstat, names) && std::getline(netstat, values)) {
+    if (names.rfind("TcpExt:", 0) != 0) continue;
+    std::istringstream n(names), v(values);
+    for (std::string name, value; n >> name && v >> value;)
+      if (name == "ListenOverflows") return std::stoll(value);
+  }
+  return -1;
+}
 
 TEST(ServeLoad, ManyClientsGetAnswersOr503AndNothingElse) {
   testing::TwoClassMap f;
@@ -25,6 +41,7 @@ TEST(ServeLoad, ManyClientsGetAnswersOr503AndNothingElse) {
                                 (f.tmp.path / "serve.log").string());
   ASSERT_GT(server.port(), 0) << server.output();
   constexpr int kClients = 16, kRequests = 12;
+  const long long overflows_before = listen_overflows();
   std::mutex m;
   std::vector<double> latencies_ms;
   std::map<int, int> statuses;  // -1: no answer
@@ -60,8 +77,12 @@ TEST(ServeLoad, ManyClientsGetAnswersOr503AndNothingElse) {
              latencies_ms[latencies_ms.size() * 99 / 100]);
   for (const auto& [status, n] : statuses) EXPECT_TRUE(status == 200 || status == 503) << n << " answers with " << status;
   // No client waited for a SYN retransmission (1 s): the listen backlog holds 16 clients
-  // connecting at once (httplib's own is 5; MapServer::bind raises it).
-  EXPECT_LT(latencies_ms[latencies_ms.size() * 99 / 100], 1000.0);
+  // connecting at once (httplib's own is 5; MapServer::bind raises it). Counted by the kernel, not
+  // timed: a p99 bound of 1 s failed on a loaded machine (1005 ms at a load average of 10) without
+  // any overflow. Another program's overflow at the same time would fail it too (none in CI).
+  if (overflows_before >= 0) {
+    EXPECT_EQ(listen_overflows() - overflows_before, 0);
+  }
   EXPECT_GT(statuses[200], 0);
   EXPECT_EQ(refused_without_retry_after, 0);
   httplib::Client client("127.0.0.1", server.port());

@@ -7,7 +7,7 @@
 #include <cmath>
 #include <mutex>
 #include <nlohmann/json.hpp>
-#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgcodecs.hpp>  // the cv::ImwriteFlags
 #include <opencv2/imgproc.hpp>
 
 #include "slamvdb/core/error.hpp"
@@ -16,6 +16,7 @@
 #include "slamvdb/io/rellis_reader.hpp"
 #include "slamvdb/io/sequence_reader.hpp"
 #include "slamvdb/synth/camera_sim.hpp"
+#include "slamvdb/io/image_codecs.hpp"
 
 namespace slamvdb::synth {
 
@@ -77,7 +78,7 @@ void write_text(const fs::path& path, const std::string& text) { write_bytes(pat
 void write_image(const fs::path& path, const cv::Mat& image, const std::vector<int>& params) {
   std::vector<uchar> encoded;
   try {
-    if (!cv::imencode(path.extension().string(), image, encoded, params))
+    if (!encode_image(path.extension().string(), image, encoded, params))
       throw Error(fmt::format("cannot encode {}", path.string()));
   } catch (const cv::Exception& e) {
     throw Error(fmt::format("cannot encode {}: {}", path.string(), e.what()));

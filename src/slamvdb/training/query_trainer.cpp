@@ -14,18 +14,9 @@ namespace {
 
 const QueryTrainerFactory& query_trainer_factory() {
 #ifdef SLAMVDB_TORCH_TRAINING_PLUGIN
-  static const QueryTrainerFactory* factory = [] {
-    using Entry = const QueryTrainerFactory* (*)();
-    const auto entry = reinterpret_cast<Entry>(
-        plugin_symbol(SLAMVDB_TORCH_TRAINING_PLUGIN, kQueryTrainerSymbol, "query training (libtorch)"));
-    const QueryTrainerFactory* f = entry();
-    if (f->version != kQueryTrainerVersion)
-      throw Error(fmt::format("query training: {} is version {}, this slamvdb needs {}: it is from another build "
-                              "(rebuild or reinstall both)",
-                              SLAMVDB_TORCH_TRAINING_PLUGIN, f->version, kQueryTrainerVersion));
-    return f;
-  }();
-  return *factory;
+  static const QueryTrainerFactory& factory = plugin_exports<QueryTrainerFactory>(
+      SLAMVDB_TORCH_TRAINING_PLUGIN, kQueryTrainerSymbol, "query training (libtorch)", kQueryTrainerVersion);
+  return factory;
 #else
   throw Error("query training needs libtorch: this slamvdb was built without it (SLAMVDB_WITH_TORCH=OFF)");
 #endif
