@@ -6,8 +6,10 @@
 // with a colour bar, and shows what the map holds at a clicked point (POST /api/at). In live mode
 // (`map|slam --serve`: /api/info has "live") it follows GET /api/events without reloading: the
 // chunks of new and growing submaps are fetched (GET /api/points?submap=ID), moved submaps are
-// re-placed by their new T_world_submap (nothing fetched), and the mapping progress is shown.
+// re-placed by their new T_world_submap (nothing fetched), a merged submap's chunks are replaced by
+// those of the submap it went into, an unloaded one's are kept, and the mapping progress is shown.
 import * as THREE from 'three';
+import { applyMerges, replacedBy, submapsToFetch, trackMemory } from './live_changes.js';
 import { orbitView } from './orbit_view.js';
 
 const NONE = 255;
@@ -285,9 +287,11 @@ async function main() {
 function followLiveMap({ state, lod, layers, addChunks, paint, render, showFacts, progress, fit }) {
   const live = { events: 0, submaps: [...new Set(layers.map((l) => l.chunk.submap))], progress: null, errors: [], skipped: 0 };
   state.live = live;
+  const outOfMemory = new Set();  // unloaded submaps: their chunks stay as drawn (live_changes.js)
+  // The chunks a fetch of submap `id` replaces: its own and those of submaps merged into it.
   const removeSubmap = (id) => {
     for (let i = layers.length - 1; i >= 0; --i) {
-      if (layers[i].chunk.submap !== id) continue;
+      if (!replacedBy(layers[i].chunk, id)) continue;
       layers[i].points.removeFromParent();
       layers[i].points.geometry.dispose();
       layers.splice(i, 1);
@@ -301,10 +305,11 @@ function followLiveMap({ state, lod, layers, addChunks, paint, render, showFacts
       layer.points.updateMatrixWorld(true);
     }
   };
-  // A submap's chunks anew (it is new, or grew): the old ones go when the new ones are here.
-  // 503 while the map is saved at the end of mapping, or no answer (the server stopped): tried
-  // again for a few seconds (with --serve-linger the saved map then answers), else left as drawn
-  // and counted.
+  // A submap's chunks anew (it is new, grew, or took a merged one): the old ones go when the new
+  // ones are here. None (it left memory or was merged away since the event): left as drawn, the
+  // next event says what became of it. 503 while the map is saved at the end of mapping, or no
+  // answer (the server stopped): tried again for a few seconds (with --serve-linger the saved map
+  // then answers), else left as drawn and counted.
   const refetch = async (params, remove) => {
     let answer;
     for (let attempt = 0; !answer; ++attempt) {
@@ -316,6 +321,7 @@ function followLiveMap({ state, lod, layers, addChunks, paint, render, showFacts
         await new Promise((resolve) => setTimeout(resolve, 500));
       }
     }
+    if (params.submap !== undefined && answer.chunks.length === 0) return;
     remove();
     const before = layers.length;
     const bounds = addChunks(answer.chunks);
@@ -337,10 +343,14 @@ function followLiveMap({ state, lod, layers, addChunks, paint, render, showFacts
       await refetch({}, () => { for (const id of live.submaps) removeSubmap(id); });
     } else {
       for (const s of change.moved) place(s.id, rowsToT(s.T_world_submap));
-      for (const id of [...change.added.map((s) => s.id), ...change.grew]) await refetch({ submap: id }, () => removeSubmap(id));
+      // merged: its chunks are held by the target until the target's are fetched (drawn once);
+      // unloaded: still in the map file, only out of memory: what was drawn of it is kept.
+      applyMerges(layers.map((l) => l.chunk), change.merged);
+      trackMemory(outOfMemory, change);
+      for (const id of submapsToFetch(change, outOfMemory)) await refetch({ submap: id }, () => removeSubmap(id));
     }
     live.events += 1;
-    live.submaps = [...new Set(layers.map((l) => l.chunk.submap))];
+    live.submaps = [...new Set(layers.map((l) => l.chunk.heldBy ?? l.chunk.submap))];  // whose chunks are drawn
     state.points = layers.reduce((n, l) => n + l.indices.length, 0);
     showFacts(state.points);
     render();

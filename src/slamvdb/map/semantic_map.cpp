@@ -47,7 +47,7 @@ SemanticMap::SemanticMap(const MapParams& params, MapInfo info)
 
 SemanticMap::SemanticMap(SemanticMap&& other) noexcept
     : params_(other.params_), info_(std::move(other.info_)), slots_(std::move(other.slots_)),
-      ids_(std::move(other.ids_)), active_slot_(other.active_slot_), index_(std::move(other.index_)),
+      ids_(std::move(other.ids_)), merged_into_(std::move(other.merged_into_)), active_slot_(other.active_slot_), index_(std::move(other.index_)),
       next_id_(other.next_id_), last_scan_position_(other.last_scan_position_) {}
 
 uint32_t SemanticMap::slot_of(int id) const {
@@ -197,6 +197,7 @@ MergeReport SemanticMap::merge_submaps(int target_id, int source_id, const Merge
   target.info_.path_length += source.info_.path_length;
   slots_[ss].reset();
   ids_.erase(source_id);
+  merged_into_[source_id] = target_id;
   index_.add_submap(ts, target.voxels_.semantics(), params_.occupancy.voxel_size, target.T_world_submap());
   return report;
 }
@@ -241,6 +242,13 @@ std::optional<SubmapInfo> SemanticMap::submap_info(int id) const {
   const auto it = ids_.find(id);
   if (it == ids_.end()) return std::nullopt;
   return slots_[it->second]->info();
+}
+
+std::optional<int> SemanticMap::merged_into(int id) const {
+  ReadLock lock(mutex_);
+  const auto it = merged_into_.find(id);
+  if (it == merged_into_.end()) return std::nullopt;
+  return it->second;
 }
 
 void SemanticMap::read_submap(int id, const std::function<void(const Submap&)>& f) const {

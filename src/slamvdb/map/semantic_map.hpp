@@ -98,7 +98,8 @@ class SemanticMap {
   // unknown id or a pose that is not a finite rigid transform (nothing is changed then).
   void set_submap_poses(const std::map<int, Pose>& T_world_submap);
   // Merges `source` into `target` when both are finished and overlap by at least
-  // options.min_overlap; the source then no longer exists. A refused merge changes nothing.
+  // options.min_overlap; the source then no longer exists (merged_into(source) says where it
+  // went). A refused merge changes nothing.
   MergeReport merge_submaps(int target, int source, const MergeOptions& options = {});
 
   // ---- building from parts (map loading) ----
@@ -113,6 +114,11 @@ class SemanticMap {
   // ---- reading (any thread) ----
   std::vector<SubmapInfo> submaps() const;   // by id
   std::optional<SubmapInfo> submap_info(int id) const;
+  // The submap a merge put submap `id` into, if one did (in this map object's life: not saved);
+  // else nullopt. A submap that left the map without a merge left by remove_finished_submap (its
+  // holder keeps it elsewhere). Lets a reader that compares the submap list over time (the live
+  // server) tell a merge from a submap leaving memory without knowing who holds the map.
+  std::optional<int> merged_into(int id) const;
   // f(const Submap&) under the read lock; throws Error for an unknown id.
   void read_submap(int id, const std::function<void(const Submap&)>& f) const;
   // f(const GlobalIndex&) under the read locks (the index and the submaps it refers to).
@@ -142,6 +148,9 @@ class SemanticMap {
   mutable FairSharedMutex mutex_;                   // slots_, ids_, index_, poses, active_slot_
   std::vector<std::unique_ptr<Submap>> slots_;      // a merged-away submap leaves an empty slot
   std::map<int, uint32_t> ids_;                     // id -> slot
+  // merged source id -> target id. At most one entry per id ever given out (a merged id never
+  // comes back), 8 bytes each: bounded by the submaps ever made, like ids_ itself.
+  std::map<int, int> merged_into_;
   std::optional<uint32_t> active_slot_;
   GlobalIndex index_;
   int next_id_ = 0;

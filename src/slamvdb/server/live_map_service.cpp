@@ -116,8 +116,9 @@ void LiveMapService::refresh_loop() {
   }
 }
 
-// One look at the map: what appeared, moved, grew or left since the last one becomes one event.
-// Only the refresher and attach/detach (exclusive) call it, so two never run at once.
+// One look at the map: what appeared, moved, grew, was merged or left memory since the last one
+// becomes one event. Only the refresher and attach/detach (exclusive) call it, so two never run at
+// once.
 void LiveMapService::refresh_locked() {
   using namespace live_map_service_detail;
   const std::vector<SubmapInfo> submaps = map_->submaps();
@@ -126,7 +127,7 @@ void LiveMapService::refresh_locked() {
   const std::size_t cells = map_->num_index_cells();
   const std::lock_guard state(state_mutex_);
   nlohmann::json added = nlohmann::json::array(), moved = nlohmann::json::array(), grew = nlohmann::json::array(),
-                 left = nlohmann::json::array();
+                 merged = nlohmann::json::array(), unloaded = nlohmann::json::array();
   std::map<int, SubmapInfo> now;
   for (const SubmapInfo& s : submaps) {
     now[s.id] = s;
@@ -139,20 +140,51 @@ void LiveMapService::refresh_locked() {
       grew.push_back(s.id);  // scans or images went into it, or it was finished
     }
   }
-  for (const auto& [id, s] : seen_)
-    if (!now.count(id)) left.push_back(id);
+  // Where a merge put a submap's voxels: the first submap in memory at this look along its merges
+  // (A into B, then B into C between two looks: C), else the last one (itself out of memory).
+  const auto merged_home = [&](int id) {
+    std::optional<int> into = map_->merged_into(id);
+    while (into && !now.count(*into))
+      if (const std::optional<int> next = map_->merged_into(*into)) into = next;
+      else break;
+    return into;
+  };
+  // A submap out of memory comes back for a merge (Mapper::merge_submaps reads both back), maybe
+  // between two looks: then it was never seen back, and only the merge record says it is gone.
+  for (auto it = out_of_memory_.begin(); it != out_of_memory_.end();) {
+    if (now.count(*it)) {
+      it = out_of_memory_.erase(it);  // read back: `added` above
+    } else if (const std::optional<int> into = merged_home(*it)) {
+      merged.push_back({{"id", *it}, {"into", *into}});
+      it = out_of_memory_.erase(it);
+    } else {
+      ++it;
+    }
+  }
+  // Every submap that leaves the map is merged (recorded by the map) or removed by its holder,
+  // who keeps it (the mapper's store: --unload-radius / --max-memory): nothing else vanishes.
+  for (const auto& [id, s] : seen_) {
+    if (now.count(id)) continue;
+    if (const std::optional<int> into = merged_home(id)) {
+      merged.push_back({{"id", id}, {"into", *into}});
+    } else {
+      unloaded.push_back(id);
+      out_of_memory_.insert(id);
+    }
+  }
   info_ = std::move(info);
   semantic_cells_ = cells;
   seen_ = std::move(now);
   const bool active_changed = active != active_;
   active_ = active;
-  if (added.empty() && moved.empty() && grew.empty() && left.empty() && !active_changed) return;
+  if (added.empty() && moved.empty() && grew.empty() && merged.empty() && unloaded.empty() && !active_changed) return;
   ++changes_;
   events_.push_back({{"changes", changes_},
                      {"added", std::move(added)},
                      {"moved", std::move(moved)},
                      {"grew", std::move(grew)},
-                     {"left", std::move(left)},
+                     {"merged", std::move(merged)},
+                     {"unloaded", std::move(unloaded)},
                      {"active", active ? nlohmann::json(*active) : nlohmann::json()}});
   while (events_.size() > options_.max_events) events_.pop_front();
 }

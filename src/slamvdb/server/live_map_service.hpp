@@ -3,9 +3,10 @@
 // served while it grows. Every read goes to a SemanticMapService over the mapper's map (its locks
 // make reading safe while the mapping thread writes); a refresh thread looks at the map at a
 // bounded rate and turns what changed into events for GET /api/events: submaps that appeared,
-// moved (loop corrections), grew (the active submap) or left memory (merged, or unloaded far from
-// the vehicle), with the change counter, plus the scans done. The map is read from memory only:
-// submaps that left it are not answered ("submaps_in_memory" in /api/info says how many are).
+// moved (loop corrections), grew (the active submap), were merged into another (loop closures:
+// SemanticMap::merged_into says which) or were unloaded (left memory far from the vehicle, kept in
+// the map file), with the change counter, plus the scans done. The map is read from memory only:
+// unloaded submaps are not answered ("submaps_in_memory" in /api/info says how many are).
 //
 // Life: attach() when mapping starts (PipelineOptions::map_started), detach() before the mapper
 // hands the map out (map_ending: waits for reads in flight; from then on reads answer 503 until
@@ -13,6 +14,7 @@
 #include <deque>
 #include <map>
 #include <optional>
+#include <set>
 #include <shared_mutex>
 
 #include "slamvdb/core/fair_shared_mutex.hpp"
@@ -86,6 +88,7 @@ class LiveMapService final : public MapService {
   std::size_t scans_done_ = 0, scans_total_ = 0;
   std::uint64_t changes_ = 0;
   std::map<int, SubmapInfo> seen_;  // the submaps at the last look, by id
+  std::set<int> out_of_memory_;     // reported unloaded, not seen back or merged since
   std::optional<int> active_;
   nlohmann::json info_;             // /api/info at the last look
   std::size_t semantic_cells_ = 0;

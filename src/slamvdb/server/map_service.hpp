@@ -71,7 +71,8 @@ class MapService {
   // /api/events tells viewers. A saved map never changes: 0.
   virtual std::uint64_t changes() const { return 0; }
   // Live mode (live_map_service.hpp): what changed after counter value `after`, oldest first, each
-  // {"changes": N, "added": [...], "moved": [...], "grew": [...], "left": [...], "active": ID|null}
+  // {"changes": N, "added": [...], "moved": [...], "grew": [...], "merged": [{"id", "into"}...],
+  //  "unloaded": [...], "active": ID|null}
   // (docs/serve-design.md "Live mode"); [] for a map that never changes.
   virtual nlohmann::json changes_since(std::uint64_t /*after*/) const { return nlohmann::json::array(); }
   // Live mode: {"mapping": bool, "scans_done": N, "scans_total": N (0: not known)}; null otherwise.
