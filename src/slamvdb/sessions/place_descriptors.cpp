@@ -1,6 +1,7 @@
 #include "slamvdb/sessions/place_descriptors.hpp"
 
 #include <fmt/format.h>
+#include <tbb/parallel_for.h>
 
 #include <algorithm>
 #include <cmath>
@@ -105,11 +106,13 @@ std::vector<Place> submap_places(std::size_t index, const std::vector<Vec3d>& cl
 
 std::vector<Place> make_places(const std::vector<std::vector<Vec3d>>& thinned_clouds, const PlaceConfig& config) {
   config.validate();
+  // Each submap's places alone (in parallel), then in submap order.
+  std::vector<std::vector<Place>> found(thinned_clouds.size());
+  tbb::parallel_for(std::size_t{0}, thinned_clouds.size(),
+                    [&](std::size_t i) { found[i] = submap_places(i, thinned_clouds[i], config); });
   std::vector<Place> places;
-  for (std::size_t i = 0; i < thinned_clouds.size(); ++i) {
-    std::vector<Place> found = submap_places(i, thinned_clouds[i], config);
-    places.insert(places.end(), std::make_move_iterator(found.begin()), std::make_move_iterator(found.end()));
-  }
+  for (std::vector<Place>& f : found)
+    places.insert(places.end(), std::make_move_iterator(f.begin()), std::make_move_iterator(f.end()));
   return places;
 }
 

@@ -9,11 +9,13 @@
 #include <map>
 #include <optional>
 #include <set>
+#include <utility>
 
 #include "slamvdb/core/error.hpp"
 #include "slamvdb/localization/preprocessing.hpp"
 #include "slamvdb/localization/registration.hpp"
 #include "slamvdb/localization/voxel_hash_map.hpp"
+#include "slamvdb/sessions/points_near_places.hpp"
 #include "slamvdb/sessions/surface_refinement.hpp"
 
 namespace slamvdb::sessions {
@@ -58,18 +60,22 @@ namespace {
 struct AlignmentSession {
   const std::vector<SessionSubmap>* submaps;
   std::vector<std::vector<Vec3d>> clouds;        // thinned to the places' cloud voxel, submap frame
-  std::vector<std::vector<Vec3d>> dense_clouds;  // thinned to the refinement voxel, submap frame
+  SubmapClouds dense_clouds;                      // thinned to the refinement voxel, submap frame
+  std::vector<Pose> T_world_submaps;
 
   std::vector<Place> places;
 
   AlignmentSession(const std::vector<SessionSubmap>& s, const AlignmentConfig& config) : submaps(&s) {
-    clouds.reserve(s.size());
     PlaceConfig dense = config.places;
     dense.cloud_voxel = config.refine_voxel;
-    for (const SessionSubmap& submap : s) {
-      clouds.push_back(thinned_cloud(submap, config.places));
-      dense_clouds.push_back(thinned_cloud(submap, dense));
-    }
+    clouds.resize(s.size());
+    std::vector<std::vector<Vec3d>> dense_submap_clouds(s.size());
+    tbb::parallel_for(std::size_t{0}, s.size(), [&](std::size_t i) {
+      clouds[i] = thinned_cloud(s[i], config.places);
+      dense_submap_clouds[i] = thinned_cloud(s[i], dense);
+    });
+    for (const SessionSubmap& submap : s) T_world_submaps.push_back(submap.T_world_submap);
+    dense_clouds = SubmapClouds(std::move(dense_submap_clouds));
     places = make_places(clouds, config.places);
   }
   Pose T_world_place(std::size_t place) const {
@@ -150,19 +156,8 @@ std::vector<Vec3d> session_cloud_near(const AlignmentSession& session, const std
                                       double radius, double voxel, std::optional<std::size_t> only_submap = {}) {
   std::vector<Eigen::Vector2d> centres;
   for (const std::size_t p : places) centres.push_back(session.T_world_place(p).translation().head<2>());
-  const double r2 = radius * radius;
-  std::vector<Vec3d> out;
-  for (std::size_t i = 0; i < session.submaps->size(); ++i) {
-    if (only_submap && *only_submap != i) continue;
-    const Pose& T_world_submap = (*session.submaps)[i].T_world_submap;
-    for (const Vec3d& x_submap : session.dense_clouds[i]) {
-      const Vec3d x = T_world_submap * x_submap;
-      if (std::any_of(centres.begin(), centres.end(),
-                      [&](const Eigen::Vector2d& c) { return (x.head<2>() - c).squaredNorm() <= r2; }))
-        out.push_back(x);
-    }
-  }
-  return localization::voxel_downsample(out, voxel);
+  return localization::voxel_downsample(
+      session.dense_clouds.world_points_near(session.T_world_submaps, centres, radius, only_submap), voxel);
 }
 
 // Every `keep_one_in`-th point on average, chosen by a hash of its index: a subset with no
