@@ -4,6 +4,9 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <fstream>
+#include <opencv2/imgcodecs.hpp>
+
 #include "slamvdb/eval/label_images.hpp"
 #include "slamvdb/inference/simulated_encoders.hpp"
 #include "slamvdb/io/sequence_reader.hpp"
@@ -121,6 +124,36 @@ TEST_F(ImageBaselineTest, RefusesForeignQueriesAndCountsImagesWithoutLabels) {
   images[2].labels = dir_ / "missing.png";
   EXPECT_NE(testing::error_of([&] { evaluate_image_baseline(images, features, text_queries(o), o); }).find("missing.png"),
             std::string::npos);
+}
+
+// Label files are read like camera images: the header's size is checked before any pixel is
+// decoded, so a small damaged file that claims a huge image is an Error naming it, never gigabytes.
+TEST(LabelImages, AHugeOrDamagedLabelFileIsAnErrorNamingItBeforeDecoding) {
+  const fs::path dir = fs::temp_directory_path() / ("slamvdb_label_images_test_" + std::to_string(::getpid()));
+  fs::create_directories(dir);
+  std::vector<unsigned char> png;
+  ASSERT_TRUE(cv::imencode(".png", cv::Mat(1, 1, CV_8UC1, cv::Scalar(3)), png));
+  const fs::path small = dir / "small.png";
+  std::ofstream(small, std::ios::binary).write(reinterpret_cast<const char*>(png.data()), std::streamsize(png.size()));
+  EXPECT_EQ(read_labels_at(small, 2, 2), std::vector<uint16_t>(4, 3));
+
+  // IHDR's width and height (bytes 16-23, big-endian) say 20000 x 20000 = 400 megapixels.
+  for (int i : {16, 20}) {
+    png[i] = 0, png[i + 1] = 0, png[i + 2] = 0x4e, png[i + 3] = 0x20;
+  }
+  const fs::path huge = dir / "huge.png";
+  std::ofstream(huge, std::ios::binary).write(reinterpret_cast<const char*>(png.data()), std::streamsize(png.size()));
+  const std::string refused = testing::error_of([&] { read_labels_at(huge, 2, 2); });
+  EXPECT_NE(refused.find("huge.png"), std::string::npos) << refused;
+  EXPECT_NE(refused.find("refused before decoding"), std::string::npos) << refused;
+
+  const fs::path text = dir / "labels.png";
+  std::ofstream(text) << "not an image";
+  const std::string damaged = testing::error_of([&] { read_labels_at(text, 2, 2); });
+  EXPECT_NE(damaged.find("neither a PNG nor a JPEG"), std::string::npos) << damaged;
+  EXPECT_NE(testing::error_of([&] { read_labels_at(dir / "missing.png", 2, 2); }).find("missing.png"),
+            std::string::npos);
+  fs::remove_all(dir);
 }
 
 }  // namespace

@@ -2,21 +2,18 @@
 
 #include <fmt/format.h>
 
-#include <fstream>
-#include <iterator>
 #include <opencv2/imgcodecs.hpp>  // the cv::ImreadModes flags
 #include <opencv2/imgproc.hpp>
 
 #include "slamvdb/core/error.hpp"
-#include "slamvdb/io/image_codecs.hpp"
+#include "slamvdb/io/image_io.hpp"
 
 namespace slamvdb {
 
 std::vector<uint16_t> read_labels_at(const std::filesystem::path& path, int width, int height) {
-  std::ifstream in(path, std::ios::binary);
-  const std::vector<unsigned char> bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-  const cv::Mat labels = bytes.empty() ? cv::Mat() : decode_image(cv::Mat(bytes, false), cv::IMREAD_UNCHANGED);
-  if (labels.empty()) throw Error(fmt::format("cannot read label image {}", path.string()));
+  // The file's size and its header's image size are checked before decoding (a damaged or huge
+  // label file is an Error naming it, not an allocation of gigabytes).
+  const cv::Mat labels = read_checked_image(path, cv::IMREAD_UNCHANGED, "label");
   if (labels.channels() != 1 || (labels.depth() != CV_8U && labels.depth() != CV_16U))
     throw Error(fmt::format("label image {} is not single-channel 8- or 16-bit class ids", path.string()));
   cv::Mat resized;

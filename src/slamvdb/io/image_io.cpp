@@ -108,13 +108,6 @@ cv::Mat decode_checked_image(std::string_view bytes, const std::string& name, in
   return image;
 }
 
-// Reads, checks the header size against `expected` (or `max_pixels` without one) and decodes.
-cv::Mat read_checked_image(const std::filesystem::path& path, int flags, const char* what, cv::Size expected,
-                           std::int64_t max_pixels) {
-  const std::string bytes = read_regular_file(path, fmt::format("{} image", what), kMaxImageFileBytes);
-  return decode_checked_image(bytes, fmt::format("{}", path), flags, what, expected, max_pixels);
-}
-
 // An image in memory: encoded bytes decoded as a file's, raw pixels checked against `expected`
 // and copied (the record keeps its bytes). Colour comes out in `flags`' order (BGR for IMREAD_COLOR).
 cv::Mat memory_image(const ImageBytes& image, int flags, const char* what, cv::Size expected, std::int64_t max_pixels) {
@@ -142,6 +135,13 @@ cv::Mat memory_image(const ImageBytes& image, int flags, const char* what, cv::S
 }
 
 }  // namespace
+
+// Reads, checks the header size against `expected` (or `max_pixels` without one) and decodes.
+cv::Mat read_checked_image(const std::filesystem::path& path, int flags, const char* what, cv::Size expected,
+                           std::int64_t max_pixels) {
+  const std::string bytes = read_regular_file(path, fmt::format("{} image", what), kMaxImageFileBytes);
+  return decode_checked_image(bytes, fmt::format("{}", path), flags, what, expected, max_pixels);
+}
 
 std::optional<cv::Size> parse_image_header(const ReadAt& read_at) {
   if (auto size = png_size(read_at)) return size;

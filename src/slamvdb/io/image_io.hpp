@@ -31,6 +31,13 @@ std::optional<cv::Size> parse_image_header(std::string_view bytes);
 // Throws Error naming the file if it is not a regular file or neither a PNG nor a JPEG.
 cv::Size read_image_size(const std::filesystem::path& path);
 
+// Reads an image file (at most kMaxImageFileBytes), checks its header size against `expected`, or
+// against `max_pixels` when `expected` is empty, and decodes it with cv::imdecode `flags`. Throws
+// Error naming the file (`what`: e.g. "label") if it cannot be read, is neither a PNG nor a JPEG,
+// is too large, or is damaged. Sizes are checked before decoding.
+cv::Mat read_checked_image(const std::filesystem::path& path, int flags, const char* what, cv::Size expected = {},
+                           std::int64_t max_pixels = kDefaultMaxImagePixels);
+
 // Loads the requested parts of an image record: rgb as CV_8UC3 in RGB order, labels as CV_8UC1
 // (with them a SIMULATED sequence's view geometry, CV_16UC3, when the record has one).
 // A part whose path is empty stays empty. Throws Error naming the file if it cannot be read or
