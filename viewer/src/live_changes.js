@@ -37,3 +37,13 @@ export function submapsToFetch(change, outOfMemory) {
   const ids = [...(change.added ?? []).map((s) => s.id), ...(change.grew ?? []), ...merged.map((m) => m.into)];
   return [...new Set(ids)].filter((id) => !gone.has(id) && !outOfMemory.has(id));
 }
+
+// A `moved` event's new anchors (`toT`: the event's rows as the chunks hold them), for every drawn
+// chunk of those submaps, in memory or not (a loop correction moves submaps that left memory too,
+// and the page keeps what it drew of them). Returns the chunks placed anew.
+export function applyMoves(chunks, moved, toT) {
+  const T = new Map((moved ?? []).map((s) => [s.id, toT(s.T_world_submap)]));
+  const placed = chunks.filter((chunk) => T.has(chunk.submap));
+  for (const chunk of placed) chunk.T = T.get(chunk.submap);
+  return placed;
+}
