@@ -47,3 +47,13 @@ export function applyMoves(chunks, moved, toT) {
   for (const chunk of placed) chunk.T = T.get(chunk.submap);
   return placed;
 }
+
+// A `resync` (the stream fell behind: everything is fetched anew): `outOfMemory` becomes the
+// event's list of submaps out of memory, and the drawn chunks to drop are returned: all but those
+// of submaps out of memory (their own, or held for a merge), which the fetch cannot bring back
+// (the live server answers from memory only).
+export function chunksDroppedOnResync(chunks, change, outOfMemory) {
+  outOfMemory.clear();
+  for (const id of change.unloaded ?? []) outOfMemory.add(id);
+  return chunks.filter((chunk) => !outOfMemory.has(chunk.heldBy ?? chunk.submap));
+}

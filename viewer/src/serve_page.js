@@ -9,7 +9,7 @@
 // re-placed by their new T_world_submap (nothing fetched), a merged submap's chunks are replaced by
 // those of the submap it went into, an unloaded one's are kept, and the mapping progress is shown.
 import * as THREE from 'three';
-import { applyMerges, applyMoves, replacedBy, submapsToFetch, trackMemory } from './live_changes.js';
+import { applyMerges, applyMoves, chunksDroppedOnResync, replacedBy, submapsToFetch, trackMemory } from './live_changes.js';
 import { orbitView } from './orbit_view.js';
 
 const NONE = 255;
@@ -341,8 +341,10 @@ function followLiveMap({ state, lod, layers, addChunks, paint, render, showFacts
     }
   };
   const apply = async (change) => {
-    if (change.resync) {  // the stream fell behind: everything anew
-      await refetch({}, () => { for (const id of live.submaps) removeSubmap(id); });
+    if (change.resync) {  // the stream fell behind: everything anew, but what is out of memory
+      const dropped = new Set(chunksDroppedOnResync(layers.map((l) => l.chunk), change, outOfMemory));
+      place(change.moved);  // the anchors of those kept
+      await refetch({}, () => removeLayers((chunk) => dropped.has(chunk)));
     } else {
       place(change.moved);
       // merged: its chunks are held by the target until the target's are fetched (drawn once);

@@ -221,8 +221,19 @@ nlohmann::json LiveMapService::changes_since(std::uint64_t after) const {
   nlohmann::json out = nlohmann::json::array();
   if (after >= changes_) return out;
   if (events_.empty() || events_.front().at("changes").get<std::uint64_t>() > after + 1) {
-    // The stream fell behind the events kept: it reloads everything instead.
-    out.push_back({{"changes", changes_}, {"resync", true}, {"active", active_ ? nlohmann::json(*active_) : nlohmann::json()}});
+    // The stream fell behind the events kept: it reloads everything instead, but for the submaps
+    // out of memory (listed, with their anchors): the reload cannot bring them (reads are from
+    // memory), so what the page drew of them is kept and placed where they are now.
+    nlohmann::json unloaded = nlohmann::json::array(), moved = nlohmann::json::array();
+    for (const auto& [id, s] : out_of_memory_) {
+      unloaded.push_back(id);
+      moved.push_back(live_map_service_detail::out_of_memory_entry(s));
+    }
+    out.push_back({{"changes", changes_},
+                   {"resync", true},
+                   {"unloaded", std::move(unloaded)},
+                   {"moved", std::move(moved)},
+                   {"active", active_ ? nlohmann::json(*active_) : nlohmann::json()}});
     return out;
   }
   for (const nlohmann::json& e : events_)

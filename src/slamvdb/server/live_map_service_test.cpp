@@ -159,6 +159,33 @@ TEST(LiveMapEvents, CorrectionsOfSubmapsOutOfMemoryAreToldMoved) {
   live.detach();
 }
 
+// A stream that fell behind the events kept gets one `resync` that lists the submaps out of memory
+// with their anchors: the page reloads the rest and keeps what it drew of these.
+TEST(LiveMapEvents, ResyncListsTheSubmapsOutOfMemory) {
+  MapParams params;
+  params.semantic = {8, EmbeddingPrecision::kFloat16};
+  params.submap_length = 0.0;
+  SemanticMap map(params);
+  build_five_submaps(map);
+  LiveMapService live("SIMULATED ground", 8, {.refresh_seconds = 3600.0, .max_events = 1});
+  look(live, map);
+  auto [info1, voxels1] = map.remove_finished_submap(1);
+  auto [info3, voxels3] = map.remove_finished_submap(3);
+  look(live, map);
+  map.add_finished_submap(info1, std::move(voxels1));  // back: not listed
+  look(live, map);
+  const nlohmann::json events = live.changes_since(0);
+  ASSERT_EQ(events.size(), 1u) << events.dump();
+  const nlohmann::json& resync = events[0];
+  EXPECT_TRUE(resync.at("resync").get<bool>());
+  EXPECT_EQ(resync.at("changes"), 3);
+  EXPECT_EQ(resync.at("unloaded"), nlohmann::json::array({3})) << resync.dump();
+  ASSERT_EQ(resync.at("moved").size(), 1u);
+  EXPECT_EQ(resync.at("moved")[0].at("id"), 3);
+  EXPECT_EQ(resync.at("moved")[0].at("translation")[0].get<double>(), info3.T_world_submap.translation().x());
+  live.detach();
+}
+
 // The page's bookkeeping of these events, without a browser: a merged submap's chunks are replaced
 // by its target's next fetch, an unloaded one's are kept and not fetched.
 TEST(LiveMapEvents, PageReplacesMergedChunksAndKeepsUnloadedOnes) {
