@@ -96,7 +96,9 @@ class LiveServer {
 
   // The mapper's map is read from map_started to map_ending.
   void watch(PipelineOptions& pipeline) {
-    pipeline.map_started = [map = map_](const SemanticMap& m) { map->attach(m); };
+    pipeline.map_started = [map = map_](const SemanticMap& m, std::function<std::vector<SubmapInfo>()> all_submaps) {
+      map->attach(m, std::move(all_submaps));
+    };
     pipeline.map_ending = [map = map_] { map->detach(); };
   }
   void progress(std::size_t done, std::size_t total) { map_->set_progress(done, total); }

@@ -37,3 +37,23 @@ export function submapsToFetch(change, outOfMemory) {
   const ids = [...(change.added ?? []).map((s) => s.id), ...(change.grew ?? []), ...merged.map((m) => m.into)];
   return [...new Set(ids)].filter((id) => !gone.has(id) && !outOfMemory.has(id));
 }
+
+// A `moved` event's new anchors (`toT`: the event's rows as the chunks hold them), for every drawn
+// chunk of those submaps, in memory or not (a loop correction moves submaps that left memory too,
+// and the page keeps what it drew of them). Returns the chunks placed anew.
+export function applyMoves(chunks, moved, toT) {
+  const T = new Map((moved ?? []).map((s) => [s.id, toT(s.T_world_submap)]));
+  const placed = chunks.filter((chunk) => T.has(chunk.submap));
+  for (const chunk of placed) chunk.T = T.get(chunk.submap);
+  return placed;
+}
+
+// A `resync` (the stream fell behind: everything is fetched anew): `outOfMemory` becomes the
+// event's list of submaps out of memory, and the drawn chunks to drop are returned: all but those
+// of submaps out of memory (their own, or held for a merge), which the fetch cannot bring back
+// (the live server answers from memory only).
+export function chunksDroppedOnResync(chunks, change, outOfMemory) {
+  outOfMemory.clear();
+  for (const id of change.unloaded ?? []) outOfMemory.add(id);
+  return chunks.filter((chunk) => !outOfMemory.has(chunk.heldBy ?? chunk.submap));
+}

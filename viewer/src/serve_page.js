@@ -9,7 +9,7 @@
 // re-placed by their new T_world_submap (nothing fetched), a merged submap's chunks are replaced by
 // those of the submap it went into, an unloaded one's are kept, and the mapping progress is shown.
 import * as THREE from 'three';
-import { applyMerges, replacedBy, submapsToFetch, trackMemory } from './live_changes.js';
+import { applyMerges, applyMoves, chunksDroppedOnResync, replacedBy, submapsToFetch, trackMemory } from './live_changes.js';
 import { orbitView } from './orbit_view.js';
 
 const NONE = 255;
@@ -288,19 +288,21 @@ function followLiveMap({ state, lod, layers, addChunks, paint, render, showFacts
   const live = { events: 0, submaps: [...new Set(layers.map((l) => l.chunk.submap))], progress: null, errors: [], skipped: 0 };
   state.live = live;
   const outOfMemory = new Set();  // unloaded submaps: their chunks stay as drawn (live_changes.js)
-  // The chunks a fetch of submap `id` replaces: its own and those of submaps merged into it.
-  const removeSubmap = (id) => {
+  const removeLayers = (drop) => {
     for (let i = layers.length - 1; i >= 0; --i) {
-      if (!replacedBy(layers[i].chunk, id)) continue;
+      if (!drop(layers[i].chunk)) continue;
       layers[i].points.removeFromParent();
       layers[i].points.geometry.dispose();
       layers.splice(i, 1);
     }
   };
-  const place = (id, T) => {
+  // The chunks a fetch of submap `id` replaces: its own and those of submaps merged into it.
+  const removeSubmap = (id) => removeLayers((chunk) => replacedBy(chunk, id));
+  // New anchors of submaps in memory or out of it (live_changes.js).
+  const place = (moved) => {
+    const placed = new Set(applyMoves(layers.map((l) => l.chunk), moved, rowsToT));
     for (const layer of layers) {
-      if (layer.chunk.submap !== id) continue;
-      layer.chunk.T = T;
+      if (!placed.has(layer.chunk)) continue;
       chunkMatrix(layer.chunk).decompose(layer.points.position, layer.points.quaternion, layer.points.scale);
       layer.points.updateMatrixWorld(true);
     }
@@ -339,10 +341,12 @@ function followLiveMap({ state, lod, layers, addChunks, paint, render, showFacts
     }
   };
   const apply = async (change) => {
-    if (change.resync) {  // the stream fell behind: everything anew
-      await refetch({}, () => { for (const id of live.submaps) removeSubmap(id); });
+    if (change.resync) {  // the stream fell behind: everything anew, but what is out of memory
+      const dropped = new Set(chunksDroppedOnResync(layers.map((l) => l.chunk), change, outOfMemory));
+      place(change.moved);  // the anchors of those kept
+      await refetch({}, () => removeLayers((chunk) => dropped.has(chunk)));
     } else {
-      for (const s of change.moved) place(s.id, rowsToT(s.T_world_submap));
+      place(change.moved);
       // merged: its chunks are held by the target until the target's are fetched (drawn once);
       // unloaded: still in the map file, only out of memory: what was drawn of it is kept.
       applyMerges(layers.map((l) => l.chunk), change.merged);

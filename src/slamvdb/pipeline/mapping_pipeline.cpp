@@ -22,7 +22,7 @@ MapInfo map_info_for(const Sequence& seq, const FeatureSource* features, const P
 }
 
 LiveReaders::LiveReaders(const Mapper& mapper, const PipelineOptions& options) : ending_(options.map_ending) {
-  if (options.map_started) options.map_started(mapper.map());
+  if (options.map_started) options.map_started(mapper.map(), [&mapper] { return mapper.submaps(); });
 }
 
 void LiveReaders::end() {

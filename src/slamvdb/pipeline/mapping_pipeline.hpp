@@ -35,9 +35,11 @@ struct PipelineOptions {
   SubmapStore* store = nullptr;  // where finished submaps go as they finish (may be null)
   double unload_radius = 0;      // MapperOptions::unload_radius
   // Live readers of the map being built (`map|slam --serve`): `map_started` gets the mapper's map
-  // once mapping starts (readable while it goes on, through the map's locks); `map_ending` is called
-  // before the mapper hands the map out, after which a reader must not touch it. Both may be empty.
-  std::function<void(const SemanticMap&)> map_started;
+  // once mapping starts (readable while it goes on, through the map's locks) and every submap's
+  // info, in memory or not (Mapper::submaps: the anchors of submaps that left memory, which a loop
+  // correction moves too); `map_ending` is called before the mapper hands the map out, after which
+  // a reader must touch neither. Both may be empty.
+  std::function<void(const SemanticMap&, std::function<std::vector<SubmapInfo>()>)> map_started;
   std::function<void()> map_ending;
 };
 

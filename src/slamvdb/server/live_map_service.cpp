@@ -34,6 +34,16 @@ nlohmann::json live_info_json(const std::string& source, const SemanticMap& map,
   return j;
 }
 
+// The /api/info entry of a submap out of memory (its figures unknown, as those of one in memory).
+nlohmann::json out_of_memory_entry(const SubmapInfo& s) {
+  MapFileSummary summary;
+  summary.submaps.push_back({s, 0, 0, 0, 0});
+  nlohmann::json j = map_info_json("", summary, std::nullopt).at("submaps").at(0);
+  for (const char* field : {"blocks", "known_voxels", "occupied_voxels", "semantic_voxels"}) j[field] = nullptr;
+  j["active"] = false;
+  return j;
+}
+
 nlohmann::json submap_by_id(const nlohmann::json& info, int id) {
   for (const nlohmann::json& s : info.at("submaps"))
     if (s.at("id").get<int>() == id) return s;
@@ -57,9 +67,10 @@ LiveMapService::~LiveMapService() {
   refresher_.join();
 }
 
-void LiveMapService::attach(const SemanticMap& map) {
+void LiveMapService::attach(const SemanticMap& map, std::function<std::vector<SubmapInfo>()> all_submaps) {
   const std::unique_lock lock(source_mutex_);
   map_ = &map;
+  all_submaps_ = std::move(all_submaps);
   space_ = {map.params().semantic.dim, map.info().model_id};
   grid_resolution_ = map.params().index_cell();
   // Not owned: the mapper's map lives until detach(), which waits for every reader.
@@ -77,6 +88,7 @@ void LiveMapService::detach() {
   if (map_) refresh_locked();
   reader_.reset();
   map_ = nullptr;
+  all_submaps_ = nullptr;
   ended_ = true;
   const std::lock_guard state(state_mutex_);
   mapping_ = false;
@@ -125,6 +137,8 @@ void LiveMapService::refresh_locked() {
   const std::optional<int> active = map_->active_submap_id();
   nlohmann::json info = live_info_json(source_, *map_, submaps, active);
   const std::size_t cells = map_->num_index_cells();
+  // After the map's own list: a submap that leaves memory between the two reads is in this one.
+  const std::vector<SubmapInfo> all = all_submaps_ ? all_submaps_() : std::vector<SubmapInfo>();
   const std::lock_guard state(state_mutex_);
   nlohmann::json added = nlohmann::json::array(), moved = nlohmann::json::array(), grew = nlohmann::json::array(),
                  merged = nlohmann::json::array(), unloaded = nlohmann::json::array();
@@ -152,10 +166,10 @@ void LiveMapService::refresh_locked() {
   // A submap out of memory comes back for a merge (Mapper::merge_submaps reads both back), maybe
   // between two looks: then it was never seen back, and only the merge record says it is gone.
   for (auto it = out_of_memory_.begin(); it != out_of_memory_.end();) {
-    if (now.count(*it)) {
+    if (now.count(it->first)) {
       it = out_of_memory_.erase(it);  // read back: `added` above
-    } else if (const std::optional<int> into = merged_home(*it)) {
-      merged.push_back({{"id", *it}, {"into", *into}});
+    } else if (const std::optional<int> into = merged_home(it->first)) {
+      merged.push_back({{"id", it->first}, {"into", *into}});
       it = out_of_memory_.erase(it);
     } else {
       ++it;
@@ -169,8 +183,16 @@ void LiveMapService::refresh_locked() {
       merged.push_back({{"id", id}, {"into", *into}});
     } else {
       unloaded.push_back(id);
-      out_of_memory_.insert(id);
+      out_of_memory_.emplace(id, s);
     }
+  }
+  // A correction moves submaps out of memory where their holder keeps them (Mapper::correct_submaps
+  // reads nothing back): their new anchors, told as `moved` like those of submaps in memory.
+  for (const SubmapInfo& s : all) {
+    const auto kept = out_of_memory_.find(s.id);
+    if (kept == out_of_memory_.end() || kept->second.T_world_submap.matrix() == s.T_world_submap.matrix()) continue;
+    kept->second = s;
+    moved.push_back(out_of_memory_entry(s));
   }
   info_ = std::move(info);
   semantic_cells_ = cells;
@@ -199,8 +221,19 @@ nlohmann::json LiveMapService::changes_since(std::uint64_t after) const {
   nlohmann::json out = nlohmann::json::array();
   if (after >= changes_) return out;
   if (events_.empty() || events_.front().at("changes").get<std::uint64_t>() > after + 1) {
-    // The stream fell behind the events kept: it reloads everything instead.
-    out.push_back({{"changes", changes_}, {"resync", true}, {"active", active_ ? nlohmann::json(*active_) : nlohmann::json()}});
+    // The stream fell behind the events kept: it reloads everything instead, but for the submaps
+    // out of memory (listed, with their anchors): the reload cannot bring them (reads are from
+    // memory), so what the page drew of them is kept and placed where they are now.
+    nlohmann::json unloaded = nlohmann::json::array(), moved = nlohmann::json::array();
+    for (const auto& [id, s] : out_of_memory_) {
+      unloaded.push_back(id);
+      moved.push_back(live_map_service_detail::out_of_memory_entry(s));
+    }
+    out.push_back({{"changes", changes_},
+                   {"resync", true},
+                   {"unloaded", std::move(unloaded)},
+                   {"moved", std::move(moved)},
+                   {"active", active_ ? nlohmann::json(*active_) : nlohmann::json()}});
     return out;
   }
   for (const nlohmann::json& e : events_)

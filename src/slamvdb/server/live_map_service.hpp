@@ -6,12 +6,15 @@
 // moved (loop corrections), grew (the active submap), were merged into another (loop closures:
 // SemanticMap::merged_into says which) or were unloaded (left memory far from the vehicle, kept in
 // the map file), with the change counter, plus the scans done. The map is read from memory only:
-// unloaded submaps are not answered ("submaps_in_memory" in /api/info says how many are).
+// unloaded submaps are not answered ("submaps_in_memory" in /api/info says how many are), but a
+// correction that moves one is still told (`moved`, from its holder's anchors: Mapper::submaps),
+// so that the page re-places what it drew of it.
 //
 // Life: attach() when mapping starts (PipelineOptions::map_started), detach() before the mapper
 // hands the map out (map_ending: waits for reads in flight; from then on reads answer 503 until
 // attach_final, if ever, gives the saved map).
 #include <deque>
+#include <functional>
 #include <map>
 #include <optional>
 #include <set>
@@ -36,7 +39,9 @@ class LiveMapService final : public MapService {
   LiveMapService(const LiveMapService&) = delete;
   LiveMapService& operator=(const LiveMapService&) = delete;
 
-  void attach(const SemanticMap& map);  // the mapper's map, until detach()
+  // The mapper's map, until detach(); `all_submaps` (may be empty): every submap's info, in memory
+  // or kept by the map's holder (Mapper::submaps), for the anchors of those out of memory.
+  void attach(const SemanticMap& map, std::function<std::vector<SubmapInfo>()> all_submaps = {});
   void detach();                        // a last look at the map first (the last submap finished)
   // The saved map, served from then on (`--serve-linger`); mapping is over.
   void attach_final(std::shared_ptr<const SemanticMap> map);
@@ -78,6 +83,7 @@ class LiveMapService final : public MapService {
   // map_ and reader_; fair: a detach() waits for the reads in flight, not for every later one
   mutable FairSharedMutex source_mutex_;
   const SemanticMap* map_ = nullptr;
+  std::function<std::vector<SubmapInfo>()> all_submaps_;
   std::shared_ptr<const SemanticMap> final_;
   std::unique_ptr<SemanticMapService> reader_;
   bool ended_ = false;  // detach() was called
@@ -88,7 +94,8 @@ class LiveMapService final : public MapService {
   std::size_t scans_done_ = 0, scans_total_ = 0;
   std::uint64_t changes_ = 0;
   std::map<int, SubmapInfo> seen_;  // the submaps at the last look, by id
-  std::set<int> out_of_memory_;     // reported unloaded, not seen back or merged since
+  // Reported unloaded, not seen back or merged since: with the anchor last told.
+  std::map<int, SubmapInfo> out_of_memory_;
   std::optional<int> active_;
   nlohmann::json info_;             // /api/info at the last look
   std::size_t semantic_cells_ = 0;

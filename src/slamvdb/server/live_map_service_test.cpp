@@ -9,6 +9,8 @@
 #include <gtest/gtest.h>
 
 #include <filesystem>
+#include <functional>
+#include <map>
 #include <vector>
 
 #include "slamvdb/testing/run_command.hpp"
@@ -41,11 +43,13 @@ void build_five_submaps(SemanticMap& map) {
 }
 
 // The one event the look just made (the service's counter rose by one).
-nlohmann::json look(LiveMapService& live, const SemanticMap& map) {
+// `all_submaps`: what the map's holder says of every submap (Mapper::submaps), if anything.
+nlohmann::json look(LiveMapService& live, const SemanticMap& map,
+                    std::function<std::vector<SubmapInfo>()> all_submaps = {}) {
   const std::uint64_t before = live.changes();
   // attach() looks at the map at once, as the refresher does at its rate: each call is one look,
   // so the test decides what changed between two looks.
-  live.attach(map);
+  live.attach(map, std::move(all_submaps));
   const nlohmann::json events = live.changes_since(before);
   EXPECT_EQ(events.size(), 1u) << events.dump();
   if (!events.empty()) return events.back();
@@ -100,6 +104,85 @@ TEST(LiveMapEvents, MergedSubmapsNameTheirTargetAndUnloadedOnesAreToldApart) {
   EXPECT_EQ(back.at("added")[0].at("id"), 4);
   EXPECT_TRUE(back.at("merged").empty());
   EXPECT_EQ(live.info().at("submaps_in_memory"), 2);  // 2 and 4
+  live.detach();
+}
+
+Pose shifted(Pose T, double dx) {
+  T.translation().x() += dx;
+  return T;
+}
+
+// A loop correction moves submaps in memory and out of it alike (Mapper::correct_submaps moves
+// those out of memory where they are kept): both are told `moved` with their new anchors, so that
+// the page re-places what it drew of a submap out of memory too.
+TEST(LiveMapEvents, CorrectionsOfSubmapsOutOfMemoryAreToldMoved) {
+  MapParams params;
+  params.semantic = {8, EmbeddingPrecision::kFloat16};
+  params.submap_length = 0.0;
+  SemanticMap map(params);
+  build_five_submaps(map);
+  LiveMapService live("SIMULATED ground", 8, {.refresh_seconds = 3600.0});  // looks only when told
+  std::map<int, SubmapInfo> kept;  // what the holder keeps of the submaps out of memory (Mapper::unloaded_)
+  const auto all_submaps = [&] {
+    std::vector<SubmapInfo> all = map.submaps();
+    for (const auto& [id, info] : kept) all.push_back(info);
+    return all;
+  };
+  EXPECT_EQ(look(live, map, all_submaps).at("added").size(), 5u);
+  auto [info3, voxels3] = map.remove_finished_submap(3);
+  kept[3] = info3;
+  EXPECT_EQ(look(live, map, all_submaps).at("unloaded"), nlohmann::json::array({3}));
+
+  // The correction: 2 in memory and 3 out of it, 1 m along x.
+  const Pose T2 = shifted(map.submap_info(2)->T_world_submap, 1.0), T3 = shifted(info3.T_world_submap, 1.0);
+  map.set_submap_poses({{2, T2}});
+  kept[3].T_world_submap = T3;
+  const nlohmann::json corrected = look(live, map, all_submaps);
+  ASSERT_EQ(corrected.at("moved").size(), 2u) << corrected.dump();
+  EXPECT_EQ(corrected.at("moved")[0].at("id"), 2);
+  const nlohmann::json& moved3 = corrected.at("moved")[1];
+  EXPECT_EQ(moved3.at("id"), 3);
+  EXPECT_EQ(moved3.at("T_world_submap")[0][3].get<double>(), T3.translation().x());
+  EXPECT_EQ(moved3.at("translation")[0].get<double>(), T3.translation().x());
+  EXPECT_TRUE(corrected.at("unloaded").empty());
+  EXPECT_TRUE(corrected.at("added").empty());
+  EXPECT_EQ(live.info().at("submaps_in_memory"), 4);  // 3 is not answered from, only placed
+
+  // Read back at its new anchor: added (drawn anew), and no longer watched out of memory.
+  info3.T_world_submap = T3;
+  kept.erase(3);
+  map.add_finished_submap(info3, std::move(voxels3));
+  const nlohmann::json back = look(live, map, all_submaps);
+  ASSERT_EQ(back.at("added").size(), 1u);
+  EXPECT_EQ(back.at("added")[0].at("id"), 3);
+  EXPECT_TRUE(back.at("moved").empty());
+  live.detach();
+}
+
+// A stream that fell behind the events kept gets one `resync` that lists the submaps out of memory
+// with their anchors: the page reloads the rest and keeps what it drew of these.
+TEST(LiveMapEvents, ResyncListsTheSubmapsOutOfMemory) {
+  MapParams params;
+  params.semantic = {8, EmbeddingPrecision::kFloat16};
+  params.submap_length = 0.0;
+  SemanticMap map(params);
+  build_five_submaps(map);
+  LiveMapService live("SIMULATED ground", 8, {.refresh_seconds = 3600.0, .max_events = 1});
+  look(live, map);
+  auto [info1, voxels1] = map.remove_finished_submap(1);
+  auto [info3, voxels3] = map.remove_finished_submap(3);
+  look(live, map);
+  map.add_finished_submap(info1, std::move(voxels1));  // back: not listed
+  look(live, map);
+  const nlohmann::json events = live.changes_since(0);
+  ASSERT_EQ(events.size(), 1u) << events.dump();
+  const nlohmann::json& resync = events[0];
+  EXPECT_TRUE(resync.at("resync").get<bool>());
+  EXPECT_EQ(resync.at("changes"), 3);
+  EXPECT_EQ(resync.at("unloaded"), nlohmann::json::array({3})) << resync.dump();
+  ASSERT_EQ(resync.at("moved").size(), 1u);
+  EXPECT_EQ(resync.at("moved")[0].at("id"), 3);
+  EXPECT_EQ(resync.at("moved")[0].at("translation")[0].get<double>(), info3.T_world_submap.translation().x());
   live.detach();
 }
 

@@ -21,6 +21,7 @@
 
 #include "slamvdb/server/httplib_include.hpp"
 #include "slamvdb/server/web_assets.hpp"
+#include "slamvdb/testing/client_load.hpp"
 #include "slamvdb/testing/run_command.hpp"
 #include "slamvdb/testing/server_process.hpp"
 #include "slamvdb/testing/temp_dir.hpp"
@@ -43,12 +44,14 @@ struct LiveDrive {
   testing::TempDir tmp;
   fs::path seq = tmp.path / "seq";
   std::string cli = SLAMVDB_CLI_PATH;
-  // `slamvdb map` writing DIR/m.svdb, run in DIR, with `extra` options.
-  std::string map_command(const fs::path& dir, const std::string& extra = "") const {
+  // `slamvdb map` writing DIR/m.svdb, run in DIR, with `extra` options; at sensor rate unless
+  // `realtime` is false (as fast as it goes: the same map, the queue holds the whole drive).
+  std::string map_command(const fs::path& dir, const std::string& extra = "", bool realtime = true) const {
     fs::create_directories(dir);
-    return fmt::format("cd {} && exec {} map {} -o m.svdb --dim 8 --feature-size 16x10 --submap-length 6 --realtime "
+    return fmt::format("cd {} && exec {} map {} -o m.svdb --dim 8 --feature-size 16x10 --submap-length 6 {}"
                        "--queue 64 --queue-mb 4096 {}",
-                       shell_quote(dir.string()), shell_quote(cli), shell_quote(seq.string()), extra);
+                       shell_quote(dir.string()), shell_quote(cli), shell_quote(seq.string()),
+                       realtime ? "--realtime " : "", extra);
   }
   explicit LiveDrive(double speed = 6) {
     const auto synth = run_command(shell_quote(cli) + " --quiet synth " + shell_quote(seq.string()) +
@@ -57,8 +60,10 @@ struct LiveDrive {
     EXPECT_EQ(synth.exit_code, 0) << synth.output;
   }
   // The same run without --serve (in the background while the served one goes on).
-  std::future<testing::CommandResult> reference(const fs::path& dir) const {
-    return std::async(std::launch::async, [command = map_command(dir)] { return run_command(command + " 2>&1", 300); });
+  std::future<testing::CommandResult> reference(const fs::path& dir, bool realtime = true) const {
+    return std::async(std::launch::async, [command = map_command(dir, "", realtime)] {
+      return run_command(command + " 2>&1", 300);
+    });
   }
   // The served run (a shell that execs slamvdb: signals reach it), its stderr in served.log.
   std::unique_ptr<testing::ServerProcess> served(const fs::path& dir, const std::string& extra = "") const {
@@ -206,6 +211,58 @@ TEST(LiveServe, MapServeGrowsAnswersUnderLoadAndSavesTheSameFile) {
 
   // The file is the one a run without --serve writes.
   EXPECT_EQ(testing::read_text_file(served / "m.svdb"), testing::read_text_file(plain / "m.svdb"));
+}
+
+// Issue 21, kill -9 under load: `map --serve` killed while clients ask (queries, points, at), once
+// three submaps are mapped (the first is then in the file: the mapping thread commits a submap
+// when the next one starts), leaves a map file that opens (info --check) with those submaps, and
+// --resume completes it to as many submaps as a run never killed.
+TEST(LiveServe, KilledUnderLoadLeavesAFileThatResumes) {
+  // 12 m/s: the 30 m drive in 2.5 s, the kill after about 1 s; under the sanitizers the 18 m at
+  // 6 m/s, so that the third submap is not the last one for long.
+  const LiveDrive drive(testing::test_size(12.0, 6.0));
+  const fs::path served = drive.tmp.path / "served", plain = drive.tmp.path / "plain";
+  const auto process = drive.served(served);
+  testing::ServerProcess& run = *process;
+  auto reference = drive.reference(plain, false);
+  ASSERT_GT(run.port(), 0) << run.output() << "\n" << testing::read_text_file(drive.tmp.path / "served.log");
+  testing::ClientLoad load(run.port(), 3,
+                           {{"/api/query", R"({"text": "grass", "top_k": 5})"},
+                            {"/api/points?lod=1", ""},
+                            {"/api/at", R"({"points": [[1, 0, 0], [3, 1, 0]]})"}});
+  httplib::Client client("127.0.0.1", run.port());
+  std::size_t in_memory = 0;
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(120);
+  while (in_memory < 3 && run.running() && std::chrono::steady_clock::now() < deadline) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    if (const auto r = client.Get("/api/submaps"); r && r->status == 200)
+      in_memory = nlohmann::json::parse(r->body).at("submaps").size();
+  }
+  ASSERT_GE(in_memory, 3u) << testing::read_text_file(drive.tmp.path / "served.log");
+  ASSERT_EQ(run.stop(SIGKILL), -SIGKILL) << "mapping ended before the kill";
+  const std::map<int, int> statuses = load.stop();
+  EXPECT_GT(statuses.count(200) ? statuses.at(200) : 0, 0);
+
+  const auto info = [&](const fs::path& dir, const std::string& option) {  // stdout only with --json
+    return run_command(fmt::format("{} info {} {} {}", shell_quote(drive.cli), option,
+                                   shell_quote((dir / "m.svdb").string()), option == "--json" ? "" : "2>&1"));
+  };
+  const auto submaps_of = [&](const fs::path& dir) {
+    const auto r = info(dir, "--json");
+    EXPECT_EQ(r.exit_code, 0) << r.output;
+    return r.exit_code == 0 ? nlohmann::json::parse(r.output).at("submaps").size() : 0;
+  };
+  const auto left = info(served, "--check");
+  ASSERT_EQ(left.exit_code, 0) << left.output;
+  const std::size_t kept = submaps_of(served);
+  EXPECT_GE(kept, 1u);
+  const auto resumed = run_command(drive.map_command(served, "--resume", false) + " 2>&1", 300);
+  ASSERT_EQ(resumed.exit_code, 0) << resumed.output;
+  EXPECT_NE(resumed.output.find("resuming"), std::string::npos) << resumed.output;
+  const auto plain_run = reference.get();
+  ASSERT_EQ(plain_run.exit_code, 0) << plain_run.output;
+  EXPECT_EQ(submaps_of(served), submaps_of(plain));
+  EXPECT_GT(submaps_of(served), kept);
 }
 
 TEST(LiveServe, OptionsAreCheckedBeforeMapping) {
