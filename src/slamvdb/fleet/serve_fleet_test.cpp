@@ -108,6 +108,24 @@ TEST(ServeFleet, QueryAndClassesEqualTheCliOnTheSameRegionAndARegionIsRequired) 
   EXPECT_EQ(refused, 400);
   EXPECT_EQ(error.at("error").at("field"), "region") << error.dump();
   EXPECT_NE(error.at("error").at("message").get<std::string>().find("required for a fleet map"), std::string::npos);
+  // POST /api/at: the answers of query_points on the region pulled whole (monday's and tuesday's
+  // patches overlap at the first point; the second is on no patch).
+  const std::vector<Vec3d> points{{104.1, 5.1, 0.1}, {150, 5, 0.1}};
+  const auto [at_status, at] = post(client, "/api/at", {{"points", {{104.1, 5.1, 0.1}, {150, 5, 0.1}}}});
+  ASSERT_EQ(at_status, 200) << at.dump();
+  FleetDatabase fleet(f.url);
+  const std::vector<PointQuery> expected =
+      query_points(fleet.pull_map({Eigen::AlignedBox3d(Vec3d(95, -5, -1), Vec3d(160, 20, 2)), {}}), points);
+  ASSERT_EQ(at.at("results").size(), 2u);
+  for (std::size_t i = 0; i < 2; ++i) {
+    EXPECT_EQ(at.at("results")[i].at("found").get<bool>(), expected[i].found) << i;
+    EXPECT_EQ(at.at("results")[i].at("count").get<uint32_t>(), expected[i].count) << i;
+  }
+  EXPECT_TRUE(expected[0].found);
+  EXPECT_GT(expected[0].count, 0u);
+  // GET /api/points needs a region on a fleet.
+  EXPECT_EQ(get(client, "/api/points").second.at("error").at("field"), "bbox");
+  EXPECT_EQ(client.Get("/api/points?bbox=95,-5,-1,140,20,2")->status, 200);
   // The catalog: both sessions, six submaps, anchors in the fleet frame.
   const auto [info_status, info] = get(client, "/api/info");
   ASSERT_EQ(info_status, 200) << info.dump();
