@@ -57,31 +57,56 @@ FleetMapService::FleetMapService(std::string url, FleetServiceOptions options)
   semantic_voxels_ = semantic;
 }
 
+FleetMapService::~FleetMapService() = default;
+
 template <class F>
 auto FleetMapService::with_database(F&& f) const {
-  std::optional<FleetDatabase> db;
-  try {
-    db.emplace(url_);
-  } catch (const Error& e) {
-    throw RequestError(503, "", fmt::format("the fleet database cannot be reached: {}", e.what()));
-  }
-  try {
-    return f(*db);
-  } catch (const RequestError&) {
-    throw;
-  } catch (const DeadlineExceeded&) {
-    throw;
-  } catch (const Error& e) {
-    if (!is_database_error(e)) throw;
-    // Did the database go away meanwhile (or a shard of it)? A new connection tells.
-    bool reachable = std::string_view(e.what()).find("a shard of this fleet is down") == std::string_view::npos;
-    try {
-      if (reachable) FleetDatabase probe(url_);
-    } catch (const Error&) {
-      reachable = false;
+  const auto give_back = [this](std::unique_ptr<FleetDatabase> db) {
+    const std::lock_guard lock(idle_mutex_);
+    if (idle_.size() < kMaxIdleConnections) idle_.push_back(std::move(db));
+  };
+  for (bool retried = false;; retried = true) {
+    std::unique_ptr<FleetDatabase> db;
+    {
+      const std::lock_guard lock(idle_mutex_);
+      if (!idle_.empty()) db = std::move(idle_.back()), idle_.pop_back();
     }
-    if (!reachable) throw RequestError(503, "", fmt::format("the fleet database cannot answer: {}", e.what()));
-    throw RequestError(500, "", e.what());  // e.g. a payload damaged in the database (its checksum)
+    const bool reused = db != nullptr;
+    if (!db) try {
+        db = std::make_unique<FleetDatabase>(url_);
+      } catch (const Error& e) {
+        throw RequestError(503, "", fmt::format("the fleet database cannot be reached: {}", e.what()));
+      }
+    try {
+      auto answer = f(*db);
+      give_back(std::move(db));
+      return answer;
+    } catch (const RequestError&) {
+      give_back(std::move(db));  // about the question (a region too large, ...): the connection is fine
+      throw;
+    } catch (const DeadlineExceeded&) {
+      throw;  // dropped: a statement may have been cut short
+    } catch (const Error& e) {
+      if (!is_database_error(e)) {
+        give_back(std::move(db));
+        throw;
+      }
+      if (reused && !retried) {
+        // The idle connections may all predate a restart of the database: none is kept.
+        const std::lock_guard lock(idle_mutex_);
+        idle_.clear();
+        continue;
+      }
+      // Did the database go away meanwhile (or a shard of it)? A new connection tells.
+      bool reachable = std::string_view(e.what()).find("a shard of this fleet is down") == std::string_view::npos;
+      try {
+        if (reachable) FleetDatabase probe(url_);
+      } catch (const Error&) {
+        reachable = false;
+      }
+      if (!reachable) throw RequestError(503, "", fmt::format("the fleet database cannot answer: {}", e.what()));
+      throw RequestError(500, "", e.what());  // e.g. a payload damaged in the database (its checksum)
+    }
   }
 }
 
