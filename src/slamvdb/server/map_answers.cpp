@@ -248,9 +248,9 @@ nlohmann::json answer_classes(const AnswerContext& context, const ClassesRequest
   // Refused before classifying: a city-sized region must cost a count, not a classification.
   if (const std::size_t n = context.map->region_cells(request.region); n > max_cells)
     throw RequestError(413, request.region.box ? "bbox" : "radius",
-                       fmt::format("the region holds {} semantic cells; GET /api/classes answers at most {} (the "
+                       fmt::format("the region holds {}{} semantic cells; GET /api/classes answers at most {} (the "
                                    "server's --max-cells): split the region into smaller boxes",
-                                   n, max_cells));
+                                   context.map->source_kind() == "fleet" ? "up to " : "", n, max_cells));
   const QuerySet& queries = *context.queries;
   std::vector<ClassifiedCell> cells;
   try {
