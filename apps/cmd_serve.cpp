@@ -2,6 +2,8 @@
 // The map is loaded once and read through its global index; the text encoder (TorchScript or the
 // SIMULATED one, said so in every answer) is loaded once, with a cache of text embeddings. Every
 // answer comes from the same library functions as `query` and `info --json --check`.
+// `serve --db URL` serves a fleet map instead (issue 24): every answer read from the database per
+// request, as `query --db` and `classify --db` read it (fleet/fleet_map_service.hpp).
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
@@ -14,13 +16,16 @@
 #include "image_encoder_option.hpp"
 #include "serve_access.hpp"
 #include "text_encoder_option.hpp"
+#include "session_option.hpp"
+#include "slamvdb/fleet/fleet_database.hpp"
+#include "slamvdb/fleet/fleet_map_service.hpp"
 #include "slamvdb/server/http_server.hpp"
 
 namespace slamvdb::cli::cmd_serve {
 namespace {
 
 struct Options {
-  std::string map, bind = "127.0.0.1", queries, text_model, image_model, token_file, tls_cert, tls_key;
+  std::string map, db, bind = "127.0.0.1", queries, text_model, image_model, token_file, tls_cert, tls_key;
   int port = 8080;
   uint64_t sim_seed = 1;
   float sim_text_gap = 0.f;
@@ -29,13 +34,27 @@ struct Options {
   std::vector<std::string> costs;  // NAME=COST of the navigation grid
   std::size_t ann_min_cells = 200000;  // maps this large get an ANN index for top-k queries
   int64_t time_budget_ms = 10000;      // ServerLimits::time_budget
+  std::vector<std::string> sessions;   // --db: only these sessions' submaps
+  std::size_t max_region_submaps = fleet::FleetServiceOptions{}.max_region_submaps;
 };
+
+// The map file loaded once, or the fleet map behind a connection string (checked here: reachable,
+// its schema, a fleet in it), before anything listens.
+std::shared_ptr<const MapService> open_service(const Options& opt) {
+  if (!opt.db.empty()) {
+    fleet::FleetServiceOptions options;
+    options.sessions = opt.sessions;
+    options.max_region_submaps = opt.max_region_submaps;
+    return std::make_shared<fleet::FleetMapService>(opt.db, options);
+  }
+  // Below ann_min_cells exact scoring is fast enough (about 5 ms of a core per 100 k cells).
+  const AnnOptions ann;
+  return open_map_file_service(opt.map, &ann, opt.ann_min_cells);
+}
 
 void run(const Options& opt) {
   const std::string token = opt.token_file.empty() ? "" : read_token("--token", opt.token_file);
-  // Below ann_min_cells exact scoring is fast enough (about 5 ms of a core per 100 k cells).
-  const AnnOptions ann;
-  auto map = open_map_file_service(opt.map, &ann, opt.ann_min_cells);
+  const std::shared_ptr<const MapService> map = open_service(opt);
   std::unique_ptr<TextEmbeddingCache> text;
   if (!opt.no_text) {
     auto encoder = open_text_encoder(opt.text_model, map->space().dim, opt.sim_seed, opt.sim_text_gap);
@@ -91,9 +110,14 @@ void run(const Options& opt) {
   const int port = server.bind();
   // A line of stdout names the address (with --port 0, the port the system chose); scripts and tests
   // read the port from it.
-  fmt::print("serving {} on {}://{}:{}/ ({} semantic voxels)\n", opt.map, opt.tls_cert.empty() ? "http" : "https",
-             opt.bind.find(':') != std::string::npos ? "[" + opt.bind + "]" : opt.bind, port,
-             map->semantic_cells());
+  const std::string address = fmt::format("{}://{}:{}/", opt.tls_cert.empty() ? "http" : "https",
+                                          opt.bind.find(':') != std::string::npos ? "[" + opt.bind + "]" : opt.bind, port);
+  // The fleet's URL after the address: the address is the line's first "://".
+  if (opt.db.empty())
+    fmt::print("serving {} on {} ({} semantic voxels)\n", opt.map, address, map->semantic_cells());
+  else
+    fmt::print("serving on {} the fleet map {} ({} semantic voxels in its catalog; questions need a region)\n",
+               address, fleet::redact_connection_url(opt.db), map->semantic_cells());
   std::fflush(stdout);
   std::thread serving([&server] {
     server.run();
@@ -109,7 +133,17 @@ void add(CLI::App& root) {
   auto opt = std::make_shared<Options>();
   auto* cmd = root.add_subcommand(
       "serve", "Serve a map over HTTP (read-only JSON API: /healthz, /metrics, /api/info, /api/submaps, /api/classes, /api/nav-grid, POST /api/query, POST /api/at; README \"slamvdb serve\")");
-  cmd->add_option("map", opt->map, "Map file (.svdb)")->required()->check(CLI::ExistingFile);
+  cmd->add_option("map", opt->map, "Map file (.svdb); or --db")->check(CLI::ExistingFile);
+  cmd->add_option("--db", opt->db,
+                  "Serve a fleet map instead of a file: a libpq connection string (PostgreSQL + PostGIS, see `push`; "
+                  "passwords from PGPASSFILE, not here). Every answer is read from the database per request; "
+                  "POST /api/query needs a \"region\", GET /api/points a bbox or near (README \"Serving a fleet\")");
+  add_session_option(cmd, opt->sessions, "With --db: only these sessions' submaps (repeatable; default: every session)");
+  cmd->add_option("--max-region-submaps", opt->max_region_submaps,
+                  "With --db: the most submaps POST /api/at, GET /api/points or /api/nav-grid read into memory for one "
+                  "request; a region meeting more is refused with 413")
+      ->capture_default_str()
+      ->check(integer_range(1, 100000));
   cmd->add_option("--bind", opt->bind,
                   "Address to listen on; another than loopback (127.0.0.1, ::1, localhost) needs --token or "
                   "--insecure-no-auth")
@@ -194,6 +228,8 @@ void add(CLI::App& root) {
                        "--insecure-no-auth");
     if (opt->tls_cert.empty() != opt->tls_key.empty()) usage_error("--tls-cert and --tls-key go together");
     if (!opt->costs.empty() && opt->queries.empty()) usage_error("--cost needs --queries (the classes it gives costs to)");
+    if (opt->map.empty() == opt->db.empty()) usage_error("give a map file or --db URL (one of the two)");
+    if (opt->db.empty() && !opt->sessions.empty()) usage_error("--session goes with --db (a map file is served whole)");
   });
   auto io = std::make_shared<IoOptions>(cmd);
   io->input("map", opt->map);

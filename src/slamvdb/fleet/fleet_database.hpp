@@ -3,6 +3,7 @@
 // submaps (docs/fleet-design.md). Connection strings are libpq's (URLs or key=value, with
 // PGPASSFILE, PGHOST, ... from the environment), so credentials never need a command line.
 #include <memory>
+#include <optional>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -19,6 +20,30 @@ namespace slamvdb::fleet {
 inline constexpr int kFleetSchemaVersion = 3;  // 2: per-submap embedding caps; 3: shards
 // The side of the tiles a fleet is split by across shards (metres, fleet frame; schema version 3).
 inline constexpr double kFleetTileSide = 500.0;
+
+// The fleet's catalog, without any payload (FleetDatabase::catalog): what `serve --db` answers on
+// GET /api/info and /api/submaps.
+struct CatalogSession {
+  int64_t id = 0;
+  std::string name, robot, source;
+  std::optional<std::pair<double, double>> time_range;
+  Pose T_fleet_session = Pose::Identity();
+  std::size_t submaps = 0;
+};
+struct CatalogSubmap {
+  std::string session;  // its session's name
+  int id = 0;           // in its session
+  Pose T_fleet_submap = Pose::Identity();  // T_fleet_session * T_world_submap
+  std::optional<std::pair<double, double>> time_range;
+  double path_length = 0;
+  std::size_t blocks = 0, known_voxels = 0, occupied_voxels = 0, semantic_voxels = 0;
+  int revision = 0;
+  Eigen::AlignedBox3d bounds_fleet;  // its footprint and height range
+};
+struct FleetCatalog {
+  std::vector<CatalogSession> sessions;  // by id (push order)
+  std::vector<CatalogSubmap> submaps;    // by session, then id
+};
 
 struct SchemaCheck {
   int found_version = 0;  // 0: the database had no fleet schema
@@ -67,6 +92,9 @@ class FleetDatabase {
   // The region as one map in memory (the fleet's parameters; memory: the region, not the fleet),
   // for questions asked of a region without a file: query and classify --db.
   SemanticMap pull_map(const PullRequest& request);
+
+  // Every session and submap of the catalog, in one snapshot (no payload is read).
+  FleetCatalog catalog();
 
   // The catalog rows of the region's submaps (request.only ignored): keys, boxes, summaries; no
   // payload is read. In pull's order.

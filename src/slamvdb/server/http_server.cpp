@@ -152,10 +152,16 @@ std::string MapServer::Impl::metrics_text() const {
   std::map<std::string, std::pair<double, std::string>> gauges;
   gauges["slamvdb_map_semantic_cells"] = {static_cast<double>(map->semantic_cells()),
                                           "Cells of the global index that hold an embedding."};
-  const nlohmann::json info = map->info();
-  const double submaps = info.contains("submaps") ? static_cast<double>(info["submaps"].size()) : 0.0;
-  gauges["slamvdb_map_submaps"] = {submaps, "Submaps of the map."};
-  gauges["slamvdb_map_submaps_in_memory"] = {submaps, "Submaps held in memory (a saved map: all of them)."};
+  // A fleet map's submaps are in its database, read per request (/metrics does not ask it): none
+  // in memory, and their count is not a gauge here.
+  if (map->source_kind() != "fleet") {
+    const nlohmann::json info = map->info();
+    const double submaps = info.contains("submaps") ? static_cast<double>(info["submaps"].size()) : 0.0;
+    gauges["slamvdb_map_submaps"] = {submaps, "Submaps of the map."};
+    gauges["slamvdb_map_submaps_in_memory"] = {submaps, "Submaps held in memory (a saved map: all of them)."};
+  } else {
+    gauges["slamvdb_map_submaps_in_memory"] = {0.0, "Submaps held in memory (a fleet map: read per request)."};
+  }
   if (text) {
     const auto c = text->counts();
     gauges["slamvdb_text_cache_hits"] = {static_cast<double>(c.hits), "Text embeddings answered from the cache."};

@@ -47,6 +47,7 @@ class LiveMapService final : public MapService {
   void attach_final(std::shared_ptr<const SemanticMap> map);
   void set_progress(std::size_t scans_done, std::size_t scans_total);
 
+  std::string source_kind() const override { return "live"; }
   std::uint64_t changes() const override;
   nlohmann::json changes_since(std::uint64_t after) const override;
   nlohmann::json progress() const override;

@@ -94,9 +94,9 @@ nlohmann::json answer_query(const AnswerContext& context, const QueryRequest& re
   const bool exact = request.exact || !request.terms.not_text.empty() || !request.terms.not_classes.empty() ||
                      !request.terms.not_vectors.empty();
   MapService::SearchAnswer found =
-      context.map->search(std::span<const float>(q.data(), static_cast<std::size_t>(q.size())), request.search, exact);
+      context.map->search_and_classify(std::span<const float>(q.data(), static_cast<std::size_t>(q.size())),
+                                       request.search, exact, context.queries, context.classify, context.model_check);
   std::vector<ScoredCell>& results = found.cells;
-  if (context.queries) context.map->classify(*context.queries, results, context.classify, context.model_check);
   nlohmann::json rows = nlohmann::json::array();
   for (std::size_t i = 0; i < results.size(); ++i) {
     const ScoredCell& r = results[i];
@@ -117,6 +117,7 @@ nlohmann::json answer_query(const AnswerContext& context, const QueryRequest& re
     rows.push_back(std::move(row));
   }
   nlohmann::json answer = {{"encoder", encoder_json(context)},
+          {"served_from", context.map->source_kind()},
           {"semantic_cells", context.map->semantic_cells()},
           {"top_k", request.top_k_capped ? 0 : request.search.top_k},
           {"threshold", std::isfinite(request.search.threshold) ? nlohmann::json(request.search.threshold) : nlohmann::json()},
@@ -247,9 +248,9 @@ nlohmann::json answer_classes(const AnswerContext& context, const ClassesRequest
   // Refused before classifying: a city-sized region must cost a count, not a classification.
   if (const std::size_t n = context.map->region_cells(request.region); n > max_cells)
     throw RequestError(413, request.region.box ? "bbox" : "radius",
-                       fmt::format("the region holds {} semantic cells; GET /api/classes answers at most {} (the "
+                       fmt::format("the region holds {}{} semantic cells; GET /api/classes answers at most {} (the "
                                    "server's --max-cells): split the region into smaller boxes",
-                                   n, max_cells));
+                                   context.map->source_kind() == "fleet" ? "up to " : "", n, max_cells));
   const QuerySet& queries = *context.queries;
   std::vector<ClassifiedCell> cells;
   try {
@@ -276,6 +277,7 @@ nlohmann::json answer_classes(const AnswerContext& context, const ClassesRequest
                     {"confidence", c.confidence}});
   }
   return {{"encoder", encoder_json(context)},
+          {"served_from", context.map->source_kind()},
           {"queries", context.queries_name},
           {"region", map_answers_detail::region_json(request.region)},
           {"min_confidence", request.min_confidence},
@@ -290,12 +292,14 @@ nlohmann::json answer_classes(const AnswerContext& context, const ClassesRequest
 nlohmann::json region_json(const std::optional<QueryRegion>& region) { return map_answers_detail::region_json(region); }
 
 nlohmann::json answer_submaps(const AnswerContext& context) {
-  return {{"encoder", encoder_json(context)}, {"submaps", context.map->info().at("submaps")}};
+  return {{"encoder", encoder_json(context)}, {"served_from", context.map->source_kind()},
+          {"submaps", context.map->info().at("submaps")}};
 }
 
 nlohmann::json answer_info(const AnswerContext& context) {
   nlohmann::json j = context.map->info();
   j["encoder"] = encoder_json(context);
+  j["served_from"] = context.map->source_kind();
   return j;
 }
 

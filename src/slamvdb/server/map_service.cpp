@@ -75,6 +75,15 @@ MapService::SearchAnswer SemanticMapService::search(std::span<const float> query
   return {similarity_search(*map_, query, o), approximate};
 }
 
+MapService::SearchAnswer MapService::search_and_classify(std::span<const float> query, const SearchOptions& options,
+                                                         bool exact, const QuerySet* queries,
+                                                         const ClassifyOptions& classify_options,
+                                                         ModelIdCheck model_check) const {
+  SearchAnswer found = search(query, options, exact);
+  if (queries) classify(*queries, found.cells, classify_options, model_check);
+  return found;
+}
+
 void SemanticMapService::classify(const QuerySet& queries, std::span<ScoredCell> results,
                                   const ClassifyOptions& options, ModelIdCheck model_check) const {
   classify_results(*map_, queries, results, options, model_check);

@@ -1,7 +1,7 @@
 #pragma once
 // What the server reads a map through. Today a SemanticMap in memory (a saved map loaded once, or
-// later the map a running `map --serve` builds); `serve --db URL` (fleet map, a later issue) will
-// put a database-backed map behind the same interface, so the routes never touch a SemanticMap.
+// the map a running `map --serve` builds); `serve --db URL` puts a fleet map read from PostgreSQL per
+// request behind the same interface (fleet/fleet_map_service.hpp), so the routes never touch a SemanticMap.
 // Every call may come from several request threads at once: implementations are thread-safe.
 #include <atomic>
 #include <chrono>
@@ -42,6 +42,15 @@ class MapService {
     bool approximate = false;
   };
   virtual SearchAnswer search(std::span<const float> query, const SearchOptions& options, bool exact) const = 0;
+  // search(), then with `queries` classify() of its cells, over one look at the map: what POST
+  // /api/query answers. A fleet map (fleet/fleet_map_service.hpp) reads its region once for both.
+  virtual SearchAnswer search_and_classify(std::span<const float> query, const SearchOptions& options, bool exact,
+                                           const QuerySet* queries, const ClassifyOptions& classify_options,
+                                           ModelIdCheck model_check) const;
+  // Where the answers come from, said in the JSON answers of query, classes, info and submaps as
+  // "served_from": "file" (a saved map), "live" (a map being built) or "fleet" (a fleet map in
+  // PostgreSQL, read per request).
+  virtual std::string source_kind() const { return "file"; }
   // query_points over the map (what `query --at` answers), with classes when `queries` is given.
   virtual std::vector<PointQuery> at(std::span<const Vec3d> points_world, const QuerySet* queries,
                                      const ClassifyOptions& options, ModelIdCheck model_check,

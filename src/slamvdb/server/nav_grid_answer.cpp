@@ -40,9 +40,9 @@ NavGridAnswer answer_nav_grid(const AnswerContext& context, const NavGridRequest
   // Refused before building: a grid costs what its region holds and spans.
   if (const std::size_t n = context.map->region_cells(request.region); n > max_cells)
     throw RequestError(413, region_field(request.region),
-                       fmt::format("the region holds {} semantic cells; GET /api/nav-grid answers at most {} (the "
+                       fmt::format("the region holds {}{} semantic cells; GET /api/nav-grid answers at most {} (the "
                                    "server's --max-cells): split the region into smaller boxes",
-                                   n, max_cells));
+                                   context.map->source_kind() == "fleet" ? "up to " : "", n, max_cells));
   if (const double span = region_grid_cells(request.region, resolution); span > static_cast<double>(max_cells))
     throw RequestError(413, region_field(request.region),
                        fmt::format("the region spans up to {:.0f} grid cells of {} m; GET /api/nav-grid answers at "

@@ -19,20 +19,7 @@ using testing::run_command;
 using testing::shell_quote;
 
 using Rows = std::vector<std::vector<std::string>>;
-
-// An /api/classes answer's results as `classify -o X.csv` writes them.
-Rows classes_answer_rows(const nlohmann::json& answer) {
-  Rows rows;
-  for (const auto& r : answer.at("results")) {
-    const auto& p = r.at("position");
-    rows.push_back({fmt::format("{:.3f}", p[0].get<double>()), fmt::format("{:.3f}", p[1].get<double>()),
-                    fmt::format("{:.3f}", p[2].get<double>()),
-                    r.at("class").is_null() ? "" : r.at("class").get<std::string>(),
-                    fmt::format("{:.6f}", r.at("score").get<float>()), fmt::format("{:.6f}", r.at("margin").get<float>()),
-                    fmt::format("{}", r.at("count").get<uint32_t>()), fmt::format("{:.4f}", r.at("confidence").get<float>())});
-  }
-  return rows;
-}
+using testing::classes_answer_rows;
 
 // `slamvdb classify MAP --queries Q --ignore-model-id ARGS -o out.csv`: its rows without the header.
 Rows classify_cli_rows(const testing::ServedMap& s, const std::string& args) {

@@ -43,6 +43,8 @@ TEST(ServeCommand, AnswersEqualTheCli) {
   auto served_info = nlohmann::json::parse(info->body);
   EXPECT_EQ(served_info.at("encoder"), h.at("encoder"));
   served_info.erase("encoder");
+  EXPECT_EQ(served_info.at("served_from"), "file");  // a fleet map says "fleet" (ServeFleet.*)
+  served_info.erase("served_from");
   const auto cli_info = run_command(shell_quote(SLAMVDB_CLI_PATH) + " info " + shell_quote(s.f.map.string()) +
                                     " --json --check 2>/dev/null");
   ASSERT_EQ(cli_info.exit_code, 0);

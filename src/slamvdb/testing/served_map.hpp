@@ -33,6 +33,20 @@ inline std::vector<std::vector<std::string>> query_answer_rows(const nlohmann::j
   return rows;
 }
 
+// An /api/classes answer's results as `classify -o X.csv` writes them.
+inline std::vector<std::vector<std::string>> classes_answer_rows(const nlohmann::json& answer) {
+  std::vector<std::vector<std::string>> rows;
+  for (const auto& r : answer.at("results")) {
+    const auto& p = r.at("position");
+    rows.push_back({fmt::format("{:.3f}", p[0].get<double>()), fmt::format("{:.3f}", p[1].get<double>()),
+                    fmt::format("{:.3f}", p[2].get<double>()),
+                    r.at("class").is_null() ? "" : r.at("class").get<std::string>(),
+                    fmt::format("{:.6f}", r.at("score").get<float>()), fmt::format("{:.6f}", r.at("margin").get<float>()),
+                    fmt::format("{}", r.at("count").get<uint32_t>()), fmt::format("{:.4f}", r.at("confidence").get<float>())});
+  }
+  return rows;
+}
+
 struct ServedMap {
   testing::TwoClassMap f;
   testing::ServerProcess server{SLAMVDB_CLI_PATH,
