@@ -117,9 +117,11 @@ class ConfigEquivalence : public ::testing::Test {
   // The arguments every run of `cmd` has besides the option tried (which is left out of them).
   std::vector<std::string> base_args(CLI::App* cmd, const CLI::Option* tried) const {
     std::vector<std::string> args{cmd->get_name()};
-    // query and classify read a map file or, with --db, a fleet: the file unless a fleet option is tried.
-    const bool fleet_tried = (cmd->get_name() == "query" || cmd->get_name() == "classify") &&
-                             (tried->get_name() == "--db" || tried->get_name() == "--session");
+    // query, classify and serve read a map file or, with --db, a fleet: the file unless a fleet
+    // option is tried.
+    const bool fleet_tried =
+        (cmd->get_name() == "query" || cmd->get_name() == "classify" || cmd->get_name() == "serve") &&
+        (tried->get_name() == "--db" || tried->get_name() == "--session");
     for (const CLI::Option* o : cmd->get_options()) {
       const bool map_file = o->get_positional() && o->get_name() == "map" && !fleet_tried;
       if (o == tried || (!o->get_required() && !map_file)) continue;
@@ -212,6 +214,8 @@ class ConfigEquivalence : public ::testing::Test {
       for (Sample& s : samples)
         s.companions = name == "--db" ? std::vector<std::string>{"--bbox=0,0,0,1,1,1"}
                                       : std::vector<std::string>{"--db=postgresql:///fleet", "--bbox=0,0,0,1,1,1"};
+    if (cmd == "serve" && name == "--session")  // a fleet's sessions (serve needs no region)
+      for (Sample& s : samples) s.companions = {"--db=postgresql:///fleet"};
     if (cmd == "serve" && (name == "--tls-cert" || name == "--tls-key"))  // the two go together
       for (Sample& s : samples) s.companions = {(name == "--tls-cert" ? "--tls-key=" : "--tls-cert=") + file.string()};
     if (o->get_expected_max() > 1 && !samples.empty())  // a repeatable option: two values at once
