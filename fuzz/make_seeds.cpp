@@ -142,6 +142,20 @@ int main(int argc, char** argv) {
   seed("server_requests", "points", "?bbox=-2,-2,-1,2,2,1&lod=2&limit=5000&query=tall%20grass");
   seed("fleet_rows", "pose", std::string(1, '\0') + "{0.5,-0.8660254037844386,0,12.25,0.8660254037844386,0.5,0,-3,0,0,1,1e+2,0,0,0,1}");
   seed("fleet_rows", "centroid", std::string(1, '\1') + "{0.70710677,-0.70710677,0,1.5e-05}");
+  // The catalog's rows as PostgreSQL prints them (COPY text: '\t' between fields, "\N" NULL): two
+  // sessions (one without a time range) and three submaps, then region rows with and without a summary.
+  seed("fleet_catalog_rows", "catalog",
+       std::string(1, '\0') +
+           "1\tmonday\trobot-a\tSIMULATED drive\t0\t12.5\t{1,0,0,0,0,1,0,0,0,0,1,0,0,0,0,1}\n"
+           "2\ttuesday\t\t\t\\N\t\\N\t{0,-1,0,3,1,0,0,4,0,0,1,0,0,0,0,1}\n"
+           "\\.\n"
+           "1\t0\t{1,0,0,0,0,1,0,0,0,0,1,0,0,0,0,1}\t0\t6.25\t12.5\t4\t4096\t812\t800\t1\t0\t0\t-0.5\t10\t10\t1.5\n"
+           "1\t1\t{1,0,0,100,0,1,0,0,0,0,1,0,0,0,0,1}\t6.25\t12.5\t12.5\t4\t4096\t812\t800\t2\t100\t0\t-0.5\t110\t10\t1.5\n"
+           "2\t0\t{1,0,0,0,0,1,0,0,0,0,1,0,0,0,0,1}\t\\N\t\\N\t0\t0\t0\t0\t0\t1\t3\t4\t0\t3\t4\t0\n");
+  seed("fleet_catalog_rows", "region",
+       std::string(1, '\1') +
+           "1\t0\t0\t0\t-0.5\t10\t10\t1.5\t{0.70710677,0,0,0.70710677}\t0.3217505543966422\t800\n"
+           "2\t5\t3\t4\t0\t3\t4\t0\t\\N\t\\N\t0\n");
   {  // the fleet row's parameters as `push` writes them: a map's meta entries, all strings
     nlohmann::json entries = nlohmann::json::object();
     slamvdb::MapParams params;

@@ -7,6 +7,7 @@
 #include <string>
 
 #include "slamvdb/core/types.hpp"
+#include "slamvdb/fleet/fleet_catalog_rows.hpp"
 #include "slamvdb/fleet/fleet_database.hpp"
 
 namespace slamvdb::fleet {
@@ -59,6 +60,23 @@ inline std::string shard_hint(const std::string& message) {
 inline std::string trimmed_message(std::string text) {
   while (!text.empty() && (text.back() == '\n' || text.back() == ' ')) text.pop_back();
   return text;
+}
+
+// A row's fields as text (views into `row`'s result, which must outlive them), NULL as nullopt.
+inline TextRow text_row(const pqxx::row& row) {
+  TextRow out;
+  out.reserve(row.size());
+  for (const pqxx::field& f : row)
+    out.push_back(f.is_null() ? std::nullopt : std::optional<std::string_view>(std::string_view(f.c_str(), f.size())));
+  return out;
+}
+
+// libpqxx's failure `e` as the fleet's FleetDatabaseError: "`where`: the server's reason" (with the
+// shard hint when a shard's server failed); a lost connection is told from a failed statement.
+inline FleetDatabaseError database_error(const std::string& where, const pqxx::failure& e) {
+  const bool lost = dynamic_cast<const pqxx::broken_connection*>(&e) != nullptr;
+  return FleetDatabaseError(lost ? FleetDatabaseError::Kind::kConnectionLost : FleetDatabaseError::Kind::kStatementFailed,
+                            fmt::format("{}: {}{}", where, trimmed_message(e.what()), shard_hint(e.what())));
 }
 
 }  // namespace slamvdb::fleet

@@ -19,14 +19,14 @@ constexpr long long kSchemaLockKey = 0x736c616d76646231;  // "slamvdb1"
 int read_schema_version(pqxx::transaction_base& tx, const std::string& display_url) {
   if (tx.exec("SELECT to_regclass('slamvdb.schema_info') IS NULL")[0][0].as<bool>()) {
     if (!tx.exec("SELECT to_regnamespace('slamvdb') IS NULL")[0][0].as<bool>())
-      throw Error(fmt::format("fleet database {}: schema `slamvdb` exists without its version table "
+      throw FleetDataError(fmt::format("fleet database {}: schema `slamvdb` exists without its version table "
                               "(a damaged or foreign schema; not touched)",
                               display_url));
     return 0;
   }
   const pqxx::result r = tx.exec("SELECT version FROM slamvdb.schema_info");
   if (r.size() != 1 || r[0][0].is_null())
-    throw Error(fmt::format("fleet database {}: slamvdb.schema_info holds {} rows, expected one version (damaged; "
+    throw FleetDataError(fmt::format("fleet database {}: slamvdb.schema_info holds {} rows, expected one version (damaged; "
                             "not touched)",
                             display_url, r.size()));
   return r[0][0].as<int>();
@@ -47,7 +47,8 @@ FleetDatabase::FleetDatabase(const std::string& url) : display_url_(redact_conne
   try {
     connection_ = std::make_unique<Connection>(url);
   } catch (const std::exception& e) {
-    throw Error(fmt::format("cannot connect to the fleet database {}: {}", display_url_, trimmed_message(e.what())));
+    throw FleetDatabaseError(FleetDatabaseError::Kind::kUnreachable,
+                             fmt::format("cannot connect to the fleet database {}: {}", display_url_, trimmed_message(e.what())));
   }
 }
 
@@ -60,7 +61,7 @@ int FleetDatabase::schema_version() {
     pqxx::read_transaction tx(connection_->connection);
     return read_schema_version(tx, display_url_);
   } catch (const pqxx::failure& e) {
-    throw Error(fmt::format("fleet database {}: {}", display_url_, trimmed_message(e.what())));
+    throw database_error(fmt::format("fleet database {}", display_url_), e);
   }
 }
 
@@ -95,7 +96,7 @@ SchemaCheck FleetDatabase::ensure_schema() {
   } catch (const Error&) {
     throw;
   } catch (const pqxx::failure& e) {
-    throw Error(fmt::format("fleet database {}: {}", display_url_, trimmed_message(e.what())));
+    throw database_error(fmt::format("fleet database {}", display_url_), e);
   }
   check.version = kFleetSchemaVersion;
   return check;

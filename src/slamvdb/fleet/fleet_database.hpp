@@ -10,6 +10,7 @@
 
 #include <functional>
 
+#include "slamvdb/core/error.hpp"
 #include "slamvdb/fleet/fleet_pull.hpp"
 #include "slamvdb/fleet/fleet_push.hpp"
 
@@ -43,6 +44,7 @@ struct CatalogSubmap {
 struct FleetCatalog {
   std::vector<CatalogSession> sessions;  // by id (push order)
   std::vector<CatalogSubmap> submaps;    // by session, then id
+  std::size_t submaps_without_session = 0;  // rows naming no session: left out, counted
 };
 
 struct SchemaCheck {
@@ -52,12 +54,36 @@ struct SchemaCheck {
   bool migrated() const { return found_version != 0 && found_version != version; }
 };
 
+// The fleet part's failures by their cause, so that a caller (serve --db) tells them apart by type,
+// never by a message's text. Both are Errors (the CLI exits 1 on either, printing the message).
+// - FleetDatabaseError: the database itself failed: it could not be reached, the connection was
+//   lost, or a statement failed (a shard down, a lock or statement timeout, ...): asking again
+//   later may succeed (serve answers 503).
+// - FleetDataError: the database answered, but what it holds is damaged or foreign (a payload's
+//   checksum, a pose that is not rigid, a NULL where a value belongs, no fleet map in it): asking
+//   again gives the same (serve answers 500 with the reason).
+// A question that does not fit the fleet (a query set of another space, ...) stays a plain Error.
+class FleetDatabaseError : public Error {
+ public:
+  enum class Kind { kUnreachable, kConnectionLost, kStatementFailed };
+  FleetDatabaseError(Kind kind, const std::string& message) : Error(message), kind_(kind) {}
+  Kind kind() const { return kind_; }
+
+ private:
+  Kind kind_;
+};
+class FleetDataError : public Error {
+ public:
+  using Error::Error;
+};
+
 // A connection string with any password removed, for messages and logs.
 std::string redact_connection_url(std::string_view url);
 
 class FleetDatabase {
  public:
-  // Connects; throws Error naming the (redacted) connection string and the server's reason.
+  // Connects; throws FleetDatabaseError (kUnreachable) naming the (redacted) connection string and
+  // the server's reason.
   explicit FleetDatabase(const std::string& url);
   ~FleetDatabase();
   FleetDatabase(FleetDatabase&&) noexcept;
@@ -95,6 +121,8 @@ class FleetDatabase {
 
   // Every session and submap of the catalog, in one snapshot (no payload is read).
   FleetCatalog catalog();
+  // The semantic voxels of every submap of the catalog: one sum, no row read into this process.
+  std::size_t semantic_voxels();
 
   // The catalog rows of the region's submaps (request.only ignored): keys, boxes, summaries; no
   // payload is read. In pull's order.

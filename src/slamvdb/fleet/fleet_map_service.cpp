@@ -29,11 +29,6 @@ nlohmann::json box_json(const Eigen::AlignedBox3d& b) {
   return {b.min().x(), b.min().y(), b.min().z(), b.max().x(), b.max().y(), b.max().z()};
 }
 
-// An Error of the fleet part about the database says "fleet database" (FleetDatabase's messages
-// all name it with its redacted URL); any other is about the question (a query set that does not
-// fit the map, ...) and goes to the route as it is.
-bool is_database_error(const Error& e) { return std::string_view(e.what()).find("fleet database") != std::string_view::npos; }
-
 }  // namespace
 
 FleetMapService::FleetMapService(std::string url, FleetServiceOptions options)
@@ -52,9 +47,8 @@ FleetMapService::FleetMapService(std::string url, FleetServiceOptions options)
   const FleetDefinition definition = db.definition();
   space_ = {definition.params.semantic.dim, definition.info.model_id};
   index_cell_ = definition.params.index_cell();
-  std::size_t semantic = 0;
-  for (const CatalogSubmap& m : db.catalog().submaps) semantic += m.semantic_voxels;
-  semantic_voxels_ = semantic;
+  semantic_voxels_ = db.semantic_voxels();
+  counted_at_ = std::chrono::steady_clock::now();
 }
 
 FleetMapService::~FleetMapService() = default;
@@ -74,7 +68,7 @@ auto FleetMapService::with_database(F&& f) const {
     const bool reused = db != nullptr;
     if (!db) try {
         db = std::make_unique<FleetDatabase>(url_);
-      } catch (const Error& e) {
+      } catch (const FleetDatabaseError& e) {
         throw RequestError(503, "", fmt::format("the fleet database cannot be reached: {}", e.what()));
       }
     try {
@@ -86,28 +80,40 @@ auto FleetMapService::with_database(F&& f) const {
       throw;
     } catch (const DeadlineExceeded&) {
       throw;  // dropped: a statement may have been cut short
-    } catch (const Error& e) {
-      if (!is_database_error(e)) {
-        give_back(std::move(db));
-        throw;
-      }
+    } catch (const FleetDatabaseError& e) {
+      // The database failed (gone, restarted, a shard down, a statement cut by a timeout): may
+      // answer later, so 503. The connection is dropped (it may be broken).
       if (reused && !retried) {
-        // The idle connections may all predate a restart of the database: none is kept.
+        // The idle connections may all predate a restart of the database: none is kept, and the
+        // question is asked once more on a new one.
         const std::lock_guard lock(idle_mutex_);
         idle_.clear();
         continue;
       }
-      // Did the database go away meanwhile (or a shard of it)? A new connection tells.
-      bool reachable = std::string_view(e.what()).find("a shard of this fleet is down") == std::string_view::npos;
-      try {
-        if (reachable) FleetDatabase probe(url_);
-      } catch (const Error&) {
-        reachable = false;
-      }
-      if (!reachable) throw RequestError(503, "", fmt::format("the fleet database cannot answer: {}", e.what()));
-      throw RequestError(500, "", e.what());  // e.g. a payload damaged in the database (its checksum)
+      throw RequestError(503, "", fmt::format("the fleet database cannot answer: {}", e.what()));
+    } catch (const FleetDataError& e) {
+      // The database answered with damaged or foreign rows (a payload's checksum, ...): asking again
+      // gives the same, so not 503; the reason is said (not a stack trace).
+      give_back(std::move(db));
+      throw RequestError(500, "", e.what());
+    } catch (const Error&) {
+      give_back(std::move(db));  // about the question (a query set that does not fit): the route's status
+      throw;
     }
   }
+}
+
+std::size_t FleetMapService::semantic_cells() const {
+  const std::unique_lock lock(count_mutex_, std::try_to_lock);
+  if (lock.owns_lock() && std::chrono::steady_clock::now() - counted_at_ >= kCountMaxAge) {
+    try {
+      semantic_voxels_ = with_database([](FleetDatabase& db) { return db.semantic_voxels(); });
+    } catch (const std::exception&) {
+      // The last count stays (the routes that ask the database say why it cannot answer).
+    }
+    counted_at_ = std::chrono::steady_clock::now();
+  }
+  return semantic_voxels_.load();
 }
 
 nlohmann::json FleetMapService::info() const {
@@ -144,7 +150,7 @@ nlohmann::json FleetMapService::info() const {
                           {"submaps", s.submaps}});
     nlohmann::json shards = nlohmann::json::array();
     for (const auto& [id, name] : db.shards()) shards.push_back({{"id", id}, {"name", name}});
-    return nlohmann::json{{"path", db.display_url()},
+    nlohmann::json answer{{"path", db.display_url()},
                           {"database", db.display_url()},
                           {"schema_version", kFleetSchemaVersion},
                           {"voxels", {{"known", known}, {"occupied", occupied}, {"semantic", semantic}}},
@@ -157,6 +163,9 @@ nlohmann::json FleetMapService::info() const {
                           {"shards", shards},
                           {"sessions", sessions},
                           {"submaps", submaps}};
+    // Submap rows naming no session cannot be placed in the fleet frame: left out, and said.
+    if (catalog.submaps_without_session > 0) answer["submaps_without_session"] = catalog.submaps_without_session;
+    return answer;
   });
 }
 

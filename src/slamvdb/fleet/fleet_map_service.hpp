@@ -12,8 +12,12 @@
 // - GET /api/info and /api/submaps: the catalog (sessions, submaps, anchors, counts; no payload).
 // A request takes a connection of its own (libpq connections are not for several threads at once)
 // from a few kept idle between requests (connecting cost about 80 ms here, more than a small
-// question); a database that cannot be reached answers 503 naming it, a failure of the database
-// otherwise 500 with its reason, never a crash.
+// question). Failures are told apart by their type (fleet_database.hpp): the database's own
+// (FleetDatabaseError: unreachable, connection lost, a statement failed) answer 503 naming it,
+// damaged or foreign data in it (FleetDataError) 500 with the reason, a question that does not fit
+// the fleet its route's 400; never a crash.
+#include <atomic>
+#include <chrono>
 #include <memory>
 #include <mutex>
 #include <string>
@@ -42,9 +46,12 @@ class FleetMapService final : public MapService {
 
   std::string source_kind() const override { return "fleet"; }
   QuerySpace space() const override { return space_; }
-  // The semantic voxels of every submap in the catalog (at start, and at each GET /api/info): an
-  // upper bound of the fleet's semantic cells (a cell several submaps share counts once each).
-  std::size_t semantic_cells() const override { return semantic_voxels_.load(); }
+  // The semantic voxels of every submap in the catalog: an upper bound of the fleet's semantic
+  // cells (a cell several submaps share counts once each). Current within kCountMaxAge (a push
+  // meanwhile shows): one catalog sum at most every kCountMaxAge, asked by one caller at a time
+  // while the others take the last count; a database that cannot answer leaves the last count
+  // (GET /healthz and /metrics never fail for it).
+  std::size_t semantic_cells() const override;
   nlohmann::json info() const override;
   SearchAnswer search(std::span<const float> query, const SearchOptions& options, bool exact) const override;
   SearchAnswer search_and_classify(std::span<const float> query, const SearchOptions& options, bool exact,
@@ -68,10 +75,10 @@ class FleetMapService final : public MapService {
   PointChunks points(const PointsRequest& request, const PointValueSource& values) const override;
 
  private:
-  // Runs f(a connection of its own: an idle one, or new) and turns the database's failures into
-  // RequestErrors: 503 when the database cannot be reached (or a shard of it is down), 500
-  // otherwise. An idle connection the database dropped meanwhile (a restart) is retried once on a
-  // new one.
+  // Runs f(a connection of its own: an idle one, or new) and turns the fleet's failures into
+  // RequestErrors: FleetDatabaseError 503, FleetDataError 500 with its reason; other Errors (about
+  // the question) pass to the route. A question that failed on an idle connection with a
+  // FleetDatabaseError (the database restarted meanwhile) is asked once more on a new one.
   template <class F>
   auto with_database(F&& f) const;
   // The submaps meeting `box` pulled into a map (at most max_region_submaps; more: 413 naming `field`).
@@ -82,7 +89,10 @@ class FleetMapService final : public MapService {
   FleetServiceOptions options_;
   QuerySpace space_;
   double index_cell_ = 0;
+  static constexpr std::chrono::milliseconds kCountMaxAge{1000};
   mutable std::atomic<std::size_t> semantic_voxels_{0};
+  mutable std::mutex count_mutex_;
+  mutable std::chrono::steady_clock::time_point counted_at_{};  // under count_mutex_
   static constexpr std::size_t kMaxIdleConnections = 8;
   mutable std::mutex idle_mutex_;
   mutable std::vector<std::unique_ptr<FleetDatabase>> idle_;  // connections between requests

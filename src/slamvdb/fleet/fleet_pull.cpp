@@ -36,12 +36,16 @@ FleetDefinition FleetDatabase::definition() {
   try {
     pqxx::read_transaction tx(connection_->connection);
     if (tx.exec("SELECT to_regclass('slamvdb.fleet') IS NULL")[0][0].as<bool>())
-      throw Error(fmt::format("fleet database {} holds no fleet map (nothing was pushed)", display_url_));
+      throw FleetDataError(fmt::format("fleet database {} holds no fleet map (nothing was pushed)", display_url_));
     const pqxx::result r = tx.exec("SELECT params::text FROM slamvdb.fleet");
-    if (r.empty()) throw Error(fmt::format("fleet database {} holds no fleet map (nothing was pushed)", display_url_));
-    return fleet_definition_of(r[0][0].c_str(), fmt::format("fleet database {}", display_url_));
+    if (r.empty()) throw FleetDataError(fmt::format("fleet database {} holds no fleet map (nothing was pushed)", display_url_));
+    try {
+      return fleet_definition_of(r[0][0].c_str(), fmt::format("fleet database {}", display_url_));
+    } catch (const Error& e) {
+      throw FleetDataError(e.what());  // the fleet row's parameters are damaged or foreign
+    }
   } catch (const pqxx::failure& e) {
-    throw Error(fmt::format("fleet database {}: {}", display_url_, trimmed_message(e.what())));
+    throw database_error(fmt::format("fleet database {}", display_url_), e);
   }
 }
 
@@ -106,14 +110,13 @@ PullReport FleetDatabase::pull(const PullRequest& request, const std::function<v
         pulled.info.id = static_cast<int>(report.submaps);  // renumbered: ids of different sessions collide
         sink(std::move(pulled));
       } catch (const Error& e) {
-        throw Error(fmt::format("fleet database {}, {}: {}", display_url_, where, e.what()));
+        throw FleetDataError(fmt::format("fleet database {}, {}: {}", display_url_, where, e.what()));
       }
       if (report.sessions.empty() || report.sessions.back() != name) report.sessions.push_back(name);
       ++report.submaps;
     }
   } catch (const pqxx::failure& e) {
-    throw Error(fmt::format("pull from the fleet database {}: {}{}", display_url_, trimmed_message(e.what()),
-                            shard_hint(e.what())));
+    throw database_error(fmt::format("pull from the fleet database {}", display_url_), e);
   }
   report.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return report;

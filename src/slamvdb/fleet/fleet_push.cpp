@@ -76,7 +76,7 @@ void FleetDatabase::check_map(const MapParams& params, const MapInfo& info) {
     pqxx::read_transaction tx(connection_->connection);
     check_fleet(tx, params, info, false, display_url_);
   } catch (const pqxx::failure& e) {
-    throw Error(fmt::format("fleet database {}: {}", display_url_, trimmed_message(e.what())));
+    throw database_error(fmt::format("fleet database {}", display_url_), e);
   }
 }
 

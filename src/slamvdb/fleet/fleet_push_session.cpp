@@ -20,8 +20,7 @@ void in_transaction(pqxx::connection& connection, const std::string& display_url
     write(tx);
     tx.commit();
   } catch (const pqxx::failure& e) {
-    throw Error(fmt::format("push to the fleet database {}: {}{}", display_url, trimmed_message(e.what()),
-                            shard_hint(e.what())));
+    throw database_error(fmt::format("push to the fleet database {}", display_url), e);
   }
 }
 

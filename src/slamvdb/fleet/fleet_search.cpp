@@ -8,7 +8,6 @@
 
 #include "slamvdb/core/error.hpp"
 #include "slamvdb/fleet/fleet_connection.hpp"
-#include "slamvdb/fleet/fleet_rows.hpp"
 
 namespace slamvdb::fleet {
 namespace {
@@ -56,18 +55,14 @@ std::vector<RegionSubmap> FleetDatabase::region_catalog(const PullRequest& reque
              "AND m.z_max >= $5 AND m.z_min <= $6 AND ($7 OR s.name = ANY($8::text[])) ORDER BY s.id, m.submap",
              b.min().x(), b.min().y(), b.max().x(), b.max().y(), b.min().z(), b.max().z(), request.sessions.empty(),
              names, region_shards(tx, b))) {
-      RegionSubmap s;
-      s.key = {row[0].as<int64_t>(), row[1].as<int>()};
-      s.bounds_fleet = Eigen::AlignedBox3d(Vec3d(row[2].as<double>(), row[3].as<double>(), row[4].as<double>()),
-                                           Vec3d(row[5].as<double>(), row[6].as<double>(), row[7].as<double>()));
-      if (!row[9].is_null())
-        s.cap = EmbeddingCap{parse_real_array(row[8].c_str(), fmt::format("submap {} of session {}", s.key.second, s.key.first)),
-                             row[9].as<double>()};
-      s.semantic_voxels = row[10].as<std::size_t>();
-      out.push_back(std::move(s));
+      try {
+        out.push_back(region_submap_of(text_row(row)));  // fleet_catalog_rows.hpp
+      } catch (const Error& e) {
+        throw FleetDataError(fmt::format("fleet database {}: {}", display_url_, e.what()));
+      }
     }
   } catch (const pqxx::failure& e) {
-    throw Error(fmt::format("fleet database {}: {}{}", display_url_, trimmed_message(e.what()), shard_hint(e.what())));
+    throw database_error(fmt::format("fleet database {}", display_url_), e);
   }
   return out;
 }

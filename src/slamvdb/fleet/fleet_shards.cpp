@@ -84,7 +84,7 @@ std::vector<std::pair<int, std::string>> FleetDatabase::shards() {
     for (const pqxx::row& row : tx.exec("SELECT id, name FROM slamvdb.shards ORDER BY id"))
       out.emplace_back(row[0].as<int>(), row[1].as<std::string>());
   } catch (const pqxx::failure& e) {
-    throw Error(fmt::format("fleet database {}: {}", display_url_, trimmed_message(e.what())));
+    throw database_error(fmt::format("fleet database {}", display_url_), e);
   }
   return out;
 }
@@ -152,8 +152,7 @@ int FleetDatabase::add_shard(const std::string& name, const std::string& shard_u
   } catch (const Error&) {
     throw;
   } catch (const pqxx::failure& e) {
-    throw Error(fmt::format("adding shard '{}' ({}) to the fleet database {}: {}", name, shard_display, display_url_,
-                            trimmed_message(e.what())));
+    throw database_error(fmt::format("adding shard '{}' ({}) to the fleet database {}", name, shard_display, display_url_), e);
   }
   return id;
 }

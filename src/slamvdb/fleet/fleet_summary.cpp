@@ -46,6 +46,9 @@ std::optional<EmbeddingCap> embedding_cap(const SemanticLayer& layer) {
 std::optional<EmbeddingCap> enclosing_cap(std::span<const EmbeddingCap> caps) {
   if (caps.empty()) return std::nullopt;
   const auto dim = static_cast<Eigen::Index>(caps.front().centroid.size());
+  // Summaries of different lengths (a damaged row) enclose nothing: no bound, the group is scored.
+  for (const EmbeddingCap& c : caps)
+    if (static_cast<Eigen::Index>(c.centroid.size()) != dim) return std::nullopt;
   const auto as_unit = [](const EmbeddingCap& c) {
     const Eigen::VectorXd v = Eigen::Map<const Eigen::VectorXf>(c.centroid.data(), static_cast<Eigen::Index>(c.centroid.size())).cast<double>();
     return Eigen::VectorXd(v / v.norm());

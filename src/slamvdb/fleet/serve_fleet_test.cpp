@@ -3,10 +3,17 @@
 // rows of `slamvdb query --db` on that region, GET /api/classes those of `classify --db`; a
 // question without a region is refused (400 naming `region`); a stopped database is 503 JSON (the
 // server lives on and answers again once the database is back); the database is checked before
-// anything listens (exit 1), a map file with --db is a usage error (exit 2).
+// anything listens (exit 1), a map file with --db is a usage error (exit 2); a failed statement is
+// 503 and a damaged payload 500 (typed errors, not message text); the semantic cell count follows
+// a push made while serving.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <nlohmann/json.hpp>
+#include <pqxx/pqxx>
+#include <regex>
+#include <sstream>
+#include <thread>
 
 #include "slamvdb/fleet/fleet_database.hpp"
 #include "slamvdb/query/query_set.hpp"
@@ -31,7 +38,9 @@ struct ServedFleet {
   std::filesystem::path queries = tmp.path / "q.json";
   std::unique_ptr<slamvdb::testing::ServerProcess> server;
 
-  ServedFleet() {
+  // `serve_url_tail`: libpq URL parameters the server's connections get beyond the test's (`&...`);
+  // `serve_args`: more options of `slamvdb serve`.
+  explicit ServedFleet(const std::string& serve_url_tail = "", const std::vector<std::string>& serve_args = {}) {
     FleetDatabase fleet(url);
     Pose north = Pose::Identity();
     north.translation() = Vec3d(3, 4, 0);
@@ -43,10 +52,9 @@ struct ServedFleet {
     q.vectors = QueryMatrix::Zero(2, 4);
     q.vectors(0, 3) = q.vectors(1, 1) = 1;
     save_query_set(queries, q);
-    server = std::make_unique<slamvdb::testing::ServerProcess>(
-        SLAMVDB_CLI_PATH,
-        std::vector<std::string>{"serve", "--db", url, "--port", "0", "--queries", queries.string(), "--no-text"},
-        (tmp.path / "serve.log").string());
+    std::vector<std::string> args{"serve", "--db", url + serve_url_tail, "--port", "0", "--queries", queries.string(), "--no-text"};
+    args.insert(args.end(), serve_args.begin(), serve_args.end());
+    server = std::make_unique<slamvdb::testing::ServerProcess>(SLAMVDB_CLI_PATH, args, (tmp.path / "serve.log").string());
   }
   std::string log() const { return slamvdb::testing::read_text_file(tmp.path / "serve.log"); }
   // `slamvdb COMMAND --db URL --queries Q ARGS -o out.csv`: the CSV rows without the header.
@@ -152,6 +160,112 @@ TEST(ServeFleet, AStoppedDatabaseIs503AndTheServerAnswersAgainWhenItIsBack) {
   EXPECT_EQ(health, 200);  // the server itself is up
   EXPECT_TRUE(f.server->running()) << f.log();
   EXPECT_EQ(post(client, "/api/query", question).first, 200) << f.log();
+}
+
+// The database failing with its connection alive (a statement cut by lock_timeout while another
+// client holds the table) is 503 like a database that is gone: asking later may succeed. A payload
+// damaged in the database is 500 with the reason: asking again gives the same. Told apart by the
+// fleet part's error types (FleetDatabaseError, FleetDataError), never by a message's words.
+TEST(ServeFleet, AFailedStatementIs503AndADamagedPayloadIs500) {
+  ServedFleet f("&options=-c%20lock_timeout%3D150");  // ms: the server's statements wait that long for a lock
+  ASSERT_GT(f.server->port(), 0) << f.server->output() << "\n" << f.log();
+  httplib::Client client("127.0.0.1", f.server->port());
+  const nlohmann::json question = {{"class", "near-edge"}, {"top_k", 3}, {"region", {{"bbox", {-5, -5, -1, 20, 20, 2}}}}};
+  ASSERT_EQ(post(client, "/api/query", question).first, 200) << f.log();
+  pqxx::connection other(f.url);
+  {
+    pqxx::work holding(other);
+    holding.exec("LOCK TABLE slamvdb.submaps IN ACCESS EXCLUSIVE MODE");
+    const auto [status, error] = post(client, "/api/query", question);
+    EXPECT_EQ(status, 503) << error.dump();
+    EXPECT_NE(error.dump().find("lock timeout"), std::string::npos) << error.dump();
+    EXPECT_EQ(get(client, "/api/classes?bbox=-5,-5,-1,20,20,2").first, 503);
+    EXPECT_EQ(get(client, "/healthz").first, 200);  // its count: the last one the database gave
+  }  // rolled back: the lock is gone
+  ASSERT_EQ(post(client, "/api/query", question).first, 200) << f.log();
+  {
+    pqxx::work damage(other);
+    damage.exec("UPDATE slamvdb.occupancy SET crc = crc # 1 WHERE submap = 0");
+    damage.commit();
+  }
+  const auto [status, error] = post(client, "/api/query", question);
+  EXPECT_EQ(status, 500) << error.dump();
+  EXPECT_NE(error.dump().find("CRC mismatch"), std::string::npos) << error.dump();
+  EXPECT_EQ(post(client, "/api/at", {{"points", {{1, 1, 0.1}}}}).first, 500);
+  EXPECT_TRUE(f.server->running()) << f.log();
+}
+
+// /metrics, /healthz and the answers' semantic_cells count the catalog as it is now (within a
+// second), not as it was when the server started: a session pushed while serving shows.
+TEST(ServeFleet, TheSemanticCellCountFollowsAPushWhileServing) {
+  ServedFleet f;
+  ASSERT_GT(f.server->port(), 0) << f.server->output() << "\n" << f.log();
+  httplib::Client client("127.0.0.1", f.server->port());
+  const auto metrics_count = [&] {
+    const auto res = client.Get("/metrics");
+    std::smatch m;
+    const std::string text = res ? res->body : "";
+    return std::regex_search(text, m, std::regex(R"(\nslamvdb_map_semantic_cells (\d+))")) ? std::stoull(m[1].str()) : 0ull;
+  };
+  const auto catalog_count = [&] {
+    std::size_t n = 0;
+    for (const CatalogSubmap& m : FleetDatabase(f.url).catalog().submaps) n += m.semantic_voxels;
+    return n;
+  };
+  const std::size_t before = catalog_count();
+  ASSERT_GT(before, 0u);
+  EXPECT_EQ(metrics_count(), before);
+  FleetDatabase(f.url).push_map(slamvdb::testing::patch_map(2, 40), {.session = "wednesday"});
+  const std::size_t after = catalog_count();
+  ASSERT_GT(after, before);
+  std::this_thread::sleep_for(std::chrono::milliseconds(1100));  // FleetMapService::kCountMaxAge
+  EXPECT_EQ(metrics_count(), after);
+  EXPECT_EQ(get(client, "/healthz").second.at("semantic_cells").get<std::size_t>(), after);
+  const auto [status, answer] = post(client, "/api/query", {{"class", "near-edge"}, {"top_k", 1}, {"region", {{"bbox", {-5, -5, -1, 20, 20, 2}}}}});
+  ASSERT_EQ(status, 200) << answer.dump();
+  EXPECT_EQ(answer.at("semantic_cells").get<std::size_t>(), after);
+  EXPECT_EQ(get(client, "/api/info").second.at("voxels").at("semantic").get<std::size_t>(), after);
+}
+
+// GET /api/nav-grid on a fleet: the region's submaps pulled, then the map file's code; the bytes
+// of `classify --db --bbox ... --grid PREFIX` on the same region (PGM, PNG; the YAML but for its
+// image name).
+TEST(ServeFleet, TheNavGridOfARegionIsTheBytesOfClassifyDbGrid) {
+  // The test's classes have no default navigation cost (query/nav_grid.hpp): given, the same to both.
+  ServedFleet f("", {"--cost", "near-edge=0", "--cost", "far-edge=30"});
+  ASSERT_GT(f.server->port(), 0) << f.server->output() << "\n" << f.log();
+  httplib::Client client("127.0.0.1", f.server->port());
+  const std::string bbox = "95,-5,-1,140,20,2";  // both sessions' second patch, overlapping
+  const auto prefix = f.tmp.path / "grid";
+  const auto r = run_command(shell_quote(SLAMVDB_CLI_PATH) + " classify --db " + shell_quote(f.url) + " --queries " +
+                             shell_quote(f.queries.string()) + " --cost near-edge=0 --cost far-edge=30 --bbox=" + bbox + " --grid " +
+                             shell_quote(prefix.string()) + " 2>&1");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const auto served = [&](const std::string& format) {
+    const auto res = client.Get("/api/nav-grid?bbox=" + bbox + "&format=" + format);
+    EXPECT_TRUE(res && res->status == 200) << (res ? res->body : "no answer") << "\n" << f.log();
+    return res ? res->body : std::string();
+  };
+  const std::string pgm = slamvdb::testing::read_text_file(prefix.string() + ".pgm");
+  EXPECT_EQ(served("pgm"), pgm);
+  EXPECT_EQ(served("png"), slamvdb::testing::read_text_file(prefix.string() + ".png"));
+  std::string yaml = served("yaml");
+  const auto image = yaml.find("nav-grid.pgm");
+  ASSERT_NE(image, std::string::npos) << yaml;
+  EXPECT_EQ(yaml.replace(image, std::string("nav-grid.pgm").size(), "grid.pgm"),
+            slamvdb::testing::read_text_file(prefix.string() + ".yaml"));
+  // Not an empty picture: the region's patches are known cells (pixels not 255, unknown).
+  std::istringstream header(pgm);
+  std::string magic;
+  int width = 0, height = 0, maxval = 0;
+  header >> magic >> width >> height >> maxval;
+  ASSERT_EQ(magic, "P5");
+  const std::size_t cells = static_cast<std::size_t>(width) * static_cast<std::size_t>(height);
+  ASSERT_GT(cells, 0u);
+  ASSERT_GE(pgm.size(), cells);
+  EXPECT_GT(std::count_if(pgm.end() - static_cast<std::ptrdiff_t>(cells), pgm.end(),
+                          [](char c) { return static_cast<uint8_t>(c) != 255; }),
+            0);
 }
 
 TEST(ServeFleet, TheDatabaseIsCheckedBeforeListeningAndAMapFileWithDbIsAUsageError) {
