@@ -322,6 +322,17 @@ TEST(LiveServe, PageDrawsSubmapsThatAppearInChromium) {
   const auto r = run_command(fmt::format("cd {} && exec node {} http://127.0.0.1:{}/", shell_quote(SLAMVDB_SOURCE_DIR),
                                          shell_quote(script.string()), run.port()),
                              240.0);
+  // The saved map served (--serve-linger): mapping is over and reads answer again, which they do
+  // only once the file is written (503 while it is saved).
+  for (bool saved = false; !saved && run.running() && std::chrono::steady_clock::now() < deadline + std::chrono::seconds(60);) {
+    const auto info = client.Get("/api/info");
+    saved = info && info->status == 200 && !nlohmann::json::parse(info->body).at("live").at("mapping").get<bool>();
+    if (saved) {
+      const auto read = client.Get("/api/points?lod=8");
+      saved = read && read->status == 200;
+    }
+    if (!saved) std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  }
   EXPECT_EQ(run.stop(SIGTERM), 0);  // --serve-linger ends on SIGTERM, cleanly
   ASSERT_EQ(r.exit_code, 0) << r.output;
   const auto result = nlohmann::json::parse(r.output.substr(r.output.find('{')));
