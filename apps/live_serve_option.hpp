@@ -55,7 +55,7 @@ struct LiveServeOptions {
       live(cmd->add_option("--serve-wait-viewer", wait_viewer_seconds,
                            "With --serve: once the first submap is finished, hold mapping until a viewer follows the "
                            "map (the page open at the address, or any client of GET /api/events), at most this many "
-                           "seconds (then mapping goes on, said on stderr); with --realtime the replay's clock waits "
+                           "seconds (then mapping goes on; the log says whether a viewer came); with --realtime the replay's clock waits "
                            "too. The map is the same")
                ->check(finite_range(0.001, 86400)));
   }
