@@ -366,7 +366,7 @@ void add(CLI::App& root) {
   add_max_memory_option(cmd, opt->max_memory_gb);
   add_colour_basis_option(cmd, opt->colour_basis);
   opt->recording.add_to(cmd);
-  opt->serve.add_to(cmd);
+  opt->serve.add_to(cmd, true);  // continue_map calls first_submap_finished
   opt->push.add_to(cmd);
   add_option_checks(cmd, [opt, cmd] {
     opt->serve.check();

@@ -3,10 +3,13 @@
 // routes and page, through a LiveMapService over the mapper's map. The options are never recorded
 // in the map (not configurable: the file is the same with or without them), and are checked before
 // mapping starts with serve's own rules (serve_access.hpp). When mapping ends the server stops,
-// or with --serve-linger serves the saved map until SIGINT / SIGTERM.
+// or with --serve-linger serves the saved map until SIGINT / SIGTERM. `map --serve-wait-viewer`
+// holds mapping once the first submap is finished until a viewer follows the map (a page opened
+// at the address), so that it watches from the start.
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
+#include <chrono>
 #include <cstdio>
 #include <memory>
 #include <optional>
@@ -25,8 +28,10 @@ struct LiveServeOptions {
   std::string address, token_file, queries;
   bool insecure_no_auth = false, linger = false;
   double refresh_seconds = 0.5;
+  double wait_viewer_seconds = 0;  // 0: mapping never waits
 
-  void add_to(CLI::App* cmd) {
+  // `with_wait_viewer`: the command's pipeline calls PipelineOptions::first_submap_finished (map).
+  void add_to(CLI::App* cmd, bool with_wait_viewer = false) {
     const auto live = [](CLI::Option* o) { return o->configurable(false)->group("Live view (--serve)"); };
     live(cmd->add_option("--serve", address,
                          "Serve the map being built over HTTP at [ADDR:]PORT (loopback when ADDR is not given; 0: a "
@@ -46,12 +51,21 @@ struct LiveServeOptions {
              ->check(finite_range(0.05, 60)));
     live(cmd->add_flag("--serve-linger", linger,
                        "With --serve: after the map is saved, serve it until SIGINT / SIGTERM (default: stop)"));
+    if (with_wait_viewer)
+      live(cmd->add_option("--serve-wait-viewer", wait_viewer_seconds,
+                           "With --serve: once the first submap is finished, hold mapping until a viewer follows the "
+                           "map (the page open at the address, or any client of GET /api/events), at most this many "
+                           "seconds (then mapping goes on; the log says whether a viewer came); with --realtime the replay's clock waits "
+                           "too. The map is the same")
+               ->check(finite_range(0.001, 86400)));
   }
   // Usage errors (exit 2) before any work.
   void check() const {
-    const bool given = !token_file.empty() || !queries.empty() || insecure_no_auth || linger;
+    const bool given = !token_file.empty() || !queries.empty() || insecure_no_auth || linger || wait_viewer_seconds > 0;
     if (address.empty()) {
-      if (given) usage_error("--serve-token, --serve-queries, --serve-insecure-no-auth and --serve-linger go with --serve");
+      if (given)
+        usage_error("--serve-token, --serve-queries, --serve-insecure-no-auth, --serve-linger and --serve-wait-viewer go "
+                    "with --serve");
       return;
     }
     const auto [bind, port] = parse_serve_address("--serve", address);
@@ -100,6 +114,16 @@ class LiveServer {
       map->attach(m, std::move(all_submaps));
     };
     pipeline.map_ending = [map = map_] { map->detach(); };
+    if (options_.wait_viewer_seconds > 0)
+      pipeline.first_submap_finished = [map = map_, seconds = options_.wait_viewer_seconds] {
+        spdlog::info("first submap mapped: waiting up to {} s for a viewer (--serve-wait-viewer)", seconds);
+        const auto start = std::chrono::steady_clock::now();
+        if (map->wait_for_viewer(seconds))
+          spdlog::info("a viewer follows the map (after {:.1f} s): mapping goes on",
+                       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
+        else
+          spdlog::warn("no viewer came within {} s (--serve-wait-viewer): mapping goes on without one", seconds);
+      };
   }
   void progress(std::size_t done, std::size_t total) { map_->set_progress(done, total); }
   // After the map is saved: with --serve-linger serves it until SIGINT / SIGTERM; then stops.

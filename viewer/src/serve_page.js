@@ -285,7 +285,10 @@ async function main() {
 
 // Live mode: GET /api/events, each change applied in order (docs/serve-design.md "Live mode").
 function followLiveMap({ state, lod, layers, addChunks, paint, render, showFacts, progress, fit }) {
-  const live = { events: 0, submaps: [...new Set(layers.map((l) => l.chunk.submap))], progress: null, errors: [], skipped: 0 };
+  // events: changes applied; pending: received, not yet applied; opened: what was drawn before
+  // following the map (`map --serve-wait-viewer` holds mapping until then).
+  const live = { events: 0, pending: 0, submaps: [...new Set(layers.map((l) => l.chunk.submap))], progress: null, errors: [], skipped: 0 };
+  live.opened = { submaps: [...live.submaps], points: state.points };
   state.live = live;
   const outOfMemory = new Set();  // unloaded submaps: their chunks stay as drawn (live_changes.js)
   const removeLayers = (drop) => {
@@ -363,7 +366,9 @@ function followLiveMap({ state, lod, layers, addChunks, paint, render, showFacts
   const events = new EventSource('/api/events');
   events.addEventListener('submaps', (event) => {
     const change = JSON.parse(event.data);
-    queue = queue.then(() => apply(change)).catch((error) => { live.errors.push(String(error)); });
+    live.pending += 1;
+    queue = queue.then(() => apply(change)).catch((error) => { live.errors.push(String(error)); })
+      .finally(() => { live.pending -= 1; });
   });
   events.addEventListener('progress', (event) => {
     const p = JSON.parse(event.data);

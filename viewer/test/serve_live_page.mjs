@@ -1,19 +1,19 @@
-// Opens the page of a running `slamvdb map --serve` (live mode) in Debian's headless chromium
-// (playwright-core, no browser download) and watches it follow the map: what it draws when it opens
-// and once more submaps have come (or mapping ended), without a reload. Prints JSON: {"ready",
-// "first" and "later": {"submaps": ids drawn, "points", "drawn": pixels, "events", "progress": text},
-// "reloaded", "errors", "requests": URLs not of the server}.
-// Chromium takes seconds to start on a busy machine, longer than a short drive is mapped: the
-// browser starts first and says so (DIR/browser-ready), then the page is opened at the URL the
-// caller writes to DIR/url once `map --serve` runs.
-//   node viewer/test/serve_live_page.mjs DIR
-import { existsSync, readFileSync, writeFileSync } from 'node:fs';
+// Opens the page of a running `slamvdb map --serve --serve-wait-viewer` (live mode) in Debian's
+// headless chromium (playwright-core, no browser download) and watches it follow the map: what it
+// drew when it opened (before it followed GET /api/events, which is what lets mapping go on), and
+// once more submaps have come (or mapping ended), without a reload. Prints JSON: {"ready",
+// "opened": {"submaps": ids drawn, "points"} when the page began to follow the map, "first" (the
+// first look from here) and "later": {"submaps", "points", "drawn": pixels, "events", "progress":
+// text, "liveErrors"}, "reloaded", "errors", "requests": URLs not of the server}.
+// The states are waited for, never a fixed time: the caller's mapping is held until the page
+// follows, so however late chromium starts, the page sees the submaps that come after it opened.
+//   node viewer/test/serve_live_page.mjs URL
 import { chromium } from 'playwright-core';
 import { countPixels } from './page_pixels.mjs';
 
-const [dir] = process.argv.slice(2);
-if (!dir) {
-  console.error('usage: node serve_live_page.mjs DIR');
+const [url] = process.argv.slice(2);
+if (!url) {
+  console.error('usage: node serve_live_page.mjs URL');
   process.exit(2);
 }
 const browser = await chromium.launch({
@@ -29,12 +29,6 @@ const look = () => {
 };
 try {
   const page = await browser.newPage({ viewport: { width: 800, height: 600 } });
-  writeFileSync(`${dir}/browser-ready`, '');
-  let url = '';
-  for (const start = Date.now(); !url; await new Promise((resolve) => setTimeout(resolve, 50))) {
-    if (existsSync(`${dir}/url`)) url = readFileSync(`${dir}/url`, 'utf8').trim();
-    if (Date.now() - start > 120000) throw new Error(`no ${dir}/url after 120 s`);
-  }
   const errors = [];
   page.on('pageerror', (e) => errors.push(String(e)));
   const origin = new URL(url).origin;
@@ -46,15 +40,17 @@ try {
   const result = { ...ready, errors, requests };
   if (ready.ready) {
     await page.evaluate(() => { window.slamvdbOpened = true; });  // gone if the page reloads
+    result.opened = await page.evaluate(() => window.slamvdbServe.live && window.slamvdbServe.live.opened);
     result.first = { ...(await page.evaluate(look)), drawn: (await page.evaluate(countPixels)).drawn };
-    const drawnAtFirst = result.first.submaps ? result.first.submaps.length : 0;
-    // Two more submaps drawn, or mapping over (the page opened late: what it drew is reported, the
-    // caller judges).
+    const drawnAtOpening = result.opened ? result.opened.submaps.length : 0;
+    // Two more submaps drawn, or mapping over (the caller judges what was drawn).
     await page.waitForFunction((n) => {
       const live = window.slamvdbServe.live;
       return live && (live.submaps.length >= n + 2 || (live.progress && !live.progress.mapping));
-    }, drawnAtFirst, { timeout: 90000, polling: 100 }).catch((error) => { result.wait_error = String(error); });
-    await page.waitForTimeout(500);  // a change being applied
+    }, drawnAtOpening, { timeout: 90000, polling: 100 }).catch((error) => { result.wait_error = String(error); });
+    // The changes received so far applied (each event is applied in turn: live.pending counts them).
+    await page.waitForFunction(() => window.slamvdbServe.live.pending === 0, null, { timeout: 30000, polling: 100 })
+      .catch((error) => { result.wait_error = String(error); });
     result.later = { ...(await page.evaluate(look)), drawn: (await page.evaluate(countPixels)).drawn };
     result.reloaded = !(await page.evaluate(() => window.slamvdbOpened === true));
   }

@@ -2,6 +2,7 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <chrono>
 #include <optional>
 #include <utility>
@@ -14,6 +15,14 @@ namespace slamvdb {
 
 namespace {
 using Clock = std::chrono::steady_clock;
+
+// Whether the map has a finished submap once the mapper has taken everything given so far (it
+// finishes one when a scan leaves its length, so this is known only after that scan is mapped).
+bool has_finished_submap(Mapper& mapper) {
+  mapper.wait_until_idle();
+  const std::vector<SubmapInfo> submaps = mapper.submaps();
+  return std::any_of(submaps.begin(), submaps.end(), [](const SubmapInfo& s) { return s.finished; });
+}
 }  // namespace
 
 MapInfo map_info_for(const Sequence& seq, const FeatureSource* features, const PipelineOptions& options) {
@@ -91,6 +100,7 @@ SemanticMap continue_map(SemanticMap start, const SensorInput& input, FeatureSou
   double last_frame = t0, last_scan = -1e300;
   std::optional<RealtimePacer> pacer;
   if (options.realtime) pacer.emplace(t0);
+  std::function<void()> first_submap_finished = options.first_submap_finished;  // called once
   const auto wait_for = [&](double t) {
     if (!pacer) return;
     pacer->wait_for(t);
@@ -128,6 +138,11 @@ SemanticMap continue_map(SemanticMap start, const SensorInput& input, FeatureSou
       last_scan = frame.stamp;
       ++scans;
       if (progress) progress(scans, total_scans, stream->progress());
+      if (first_submap_finished && has_finished_submap(mapper)) {
+        const auto held = Clock::now();
+        std::exchange(first_submap_finished, nullptr)();
+        if (pacer) pacer->postpone(Clock::now() - held);
+      }
     } else {
       mapper.add_image(std::move(frame.image));
     }

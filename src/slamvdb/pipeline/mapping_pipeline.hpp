@@ -41,6 +41,12 @@ struct PipelineOptions {
   // a reader must touch neither. Both may be empty.
   std::function<void(const SemanticMap&, std::function<std::vector<SubmapInfo>()>)> map_started;
   std::function<void()> map_ending;
+  // Called once on the replay thread when the first submap is finished (the mapper has taken
+  // everything given so far, so the map holds it and the next one has begun), before the next
+  // frame is given; mapping goes on when it returns (`map --serve-wait-viewer` holds it there until
+  // a viewer follows the map). With `realtime` the replay's clock stops meanwhile. May be empty;
+  // the map is the same with or without it.
+  std::function<void()> first_submap_finished;
 };
 
 // Tells PipelineOptions' live readers (map_started, map_ending) when the mapper's map may be read:

@@ -27,6 +27,10 @@ class RealtimePacer {
   // Seconds since the first stamp was due (the replay's wall time).
   double elapsed() const;
   double first_stamp() const { return first_stamp_; }
+  // Every stamp falls due `pause` later (the replay was held: `map --serve-wait-viewer`), so that
+  // frames after a hold come at sensor rate again instead of all at once, and elapsed() leaves the
+  // hold out.
+  void postpone(Clock::duration pause) { start_ += pause; }
 
  private:
   Clock::time_point due(double stamp) const;

@@ -86,6 +86,9 @@ void LiveMapService::attach(const SemanticMap& map, std::function<std::vector<Su
 void LiveMapService::detach() {
   const std::unique_lock lock(source_mutex_);
   if (map_) refresh_locked();
+  kept_at_detach_.clear();
+  if (all_submaps_)
+    for (const SubmapInfo& s : all_submaps_()) kept_at_detach_.push_back(s.id);
   reader_.reset();
   map_ = nullptr;
   all_submaps_ = nullptr;
@@ -244,6 +247,36 @@ nlohmann::json LiveMapService::changes_since(std::uint64_t after) const {
 nlohmann::json LiveMapService::progress() const {
   const std::lock_guard lock(state_mutex_);
   return {{"mapping", mapping_}, {"scans_done", scans_done_}, {"scans_total", scans_total_}};
+}
+
+void LiveMapService::event_stream_opened() const {
+  {
+    const std::lock_guard lock(state_mutex_);
+    ++streams_opened_;
+  }
+  stream_opened_.notify_all();
+}
+
+bool LiveMapService::wait_for_viewer(double timeout_seconds) const {
+  std::unique_lock lock(state_mutex_);
+  return stream_opened_.wait_for(lock, std::chrono::duration<double>(timeout_seconds),
+                                 [this] { return streams_opened_ > 0; });
+}
+
+std::vector<int> LiveMapService::submaps_out_of_memory() const {
+  const std::shared_lock lock(source_mutex_);
+  if (!map_) return {};
+  // The holder's list first: a submap that leaves memory between the two reads is in it, and
+  // not in the map's (told as left out); one read back meanwhile is in both (not told).
+  std::set<int> out;
+  if (all_submaps_) {
+    for (const SubmapInfo& s : all_submaps_()) out.insert(s.id);
+  } else {
+    out.insert(kept_at_detach_.begin(), kept_at_detach_.end());
+  }
+  for (const SubmapInfo& s : map_->submaps()) out.erase(s.id);
+  std::erase_if(out, [this](int id) { return map_->merged_into(id).has_value(); });
+  return {out.begin(), out.end()};
 }
 
 nlohmann::json LiveMapService::info() const {

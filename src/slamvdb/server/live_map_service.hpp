@@ -6,19 +6,23 @@
 // moved (loop corrections), grew (the active submap), were merged into another (loop closures:
 // SemanticMap::merged_into says which) or were unloaded (left memory far from the vehicle, kept in
 // the map file), with the change counter, plus the scans done. The map is read from memory only:
-// unloaded submaps are not answered ("submaps_in_memory" in /api/info says how many are), but a
+// unloaded submaps are not answered, and every answer of a question says which were left out
+// (submaps_out_of_memory: "submaps_not_searched" in /api/query, /api/at, /api/classes); a
 // correction that moves one is still told (`moved`, from its holder's anchors: Mapper::submaps),
 // so that the page re-places what it drew of it.
 //
 // Life: attach() when mapping starts (PipelineOptions::map_started), detach() before the mapper
 // hands the map out (map_ending: waits for reads in flight; from then on reads answer 503 until
 // attach_final, if ever, gives the saved map).
+#include <condition_variable>
 #include <deque>
 #include <functional>
 #include <map>
 #include <optional>
 #include <set>
 #include <shared_mutex>
+#include <thread>
+#include <vector>
 
 #include "slamvdb/core/fair_shared_mutex.hpp"
 
@@ -51,6 +55,14 @@ class LiveMapService final : public MapService {
   std::uint64_t changes() const override;
   nlohmann::json changes_since(std::uint64_t after) const override;
   nlohmann::json progress() const override;
+  void event_stream_opened() const override;
+  // Submaps out of memory now: every submap the holder keeps (Mapper::submaps; after detach(), those
+  // it kept then) but the map in memory has not, merged ones left out (their voxels went into a
+  // submap that is listed if it is out of memory itself).
+  std::vector<int> submaps_out_of_memory() const override;
+  // Blocks until a GET /api/events stream has opened since construction, or `timeout_seconds` have
+  // passed: whether one did (`map --serve-wait-viewer`).
+  bool wait_for_viewer(double timeout_seconds) const;
 
   QuerySpace space() const override;
   std::size_t semantic_cells() const override;
@@ -88,6 +100,7 @@ class LiveMapService final : public MapService {
   std::shared_ptr<const SemanticMap> final_;
   std::unique_ptr<SemanticMapService> reader_;
   bool ended_ = false;  // detach() was called
+  std::vector<int> kept_at_detach_;  // the holder's submaps at detach(), for the saved map's answers
 
   mutable std::mutex state_mutex_;  // everything below
   std::condition_variable wake_;
@@ -100,6 +113,8 @@ class LiveMapService final : public MapService {
   std::optional<int> active_;
   nlohmann::json info_;             // /api/info at the last look
   std::size_t semantic_cells_ = 0;
+  mutable std::size_t streams_opened_ = 0;
+  mutable std::condition_variable stream_opened_;
   std::deque<nlohmann::json> events_;  // the last max_events "submaps" events, oldest first
   std::thread refresher_;
 };

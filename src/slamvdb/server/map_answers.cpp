@@ -48,6 +48,14 @@ nlohmann::json region_json(const std::optional<QueryRegion>& region) {
   return j;
 }
 
+// The submaps an answer may have left out: those out of memory when it began (`before`) or when it
+// ended (live mode: a submap can leave or come back while a question is answered).
+std::vector<int> submaps_not_searched(const MapService& map, std::vector<int> before) {
+  std::vector<int> after = map.submaps_out_of_memory(), both;
+  std::set_union(before.begin(), before.end(), after.begin(), after.end(), std::back_inserter(both));
+  return both;
+}
+
 }  // namespace map_answers_detail
 
 nlohmann::json answer_query(const AnswerContext& context, const QueryRequest& request) {
@@ -93,9 +101,11 @@ nlohmann::json answer_query(const AnswerContext& context, const QueryRequest& re
   // `not` terms move the question away from the cells the index groups: they are scored exactly.
   const bool exact = request.exact || !request.terms.not_text.empty() || !request.terms.not_classes.empty() ||
                      !request.terms.not_vectors.empty();
+  std::vector<int> not_searched = context.map->submaps_out_of_memory();
   MapService::SearchAnswer found =
       context.map->search_and_classify(std::span<const float>(q.data(), static_cast<std::size_t>(q.size())),
                                        request.search, exact, context.queries, context.classify, context.model_check);
+  not_searched = map_answers_detail::submaps_not_searched(*context.map, std::move(not_searched));
   std::vector<ScoredCell>& results = found.cells;
   nlohmann::json rows = nlohmann::json::array();
   for (std::size_t i = 0; i < results.size(); ++i) {
@@ -125,7 +135,8 @@ nlohmann::json answer_query(const AnswerContext& context, const QueryRequest& re
           {"truncated", request.top_k_capped && results.size() >= request.search.top_k},
           {"region", map_answers_detail::region_json(request.search.region)},
           {"count", results.size()},
-          {"results", std::move(rows)}};
+          {"results", std::move(rows)},
+          {"submaps_not_searched", std::move(not_searched)}};
   // Which encoder embedded the images (SIMULATED: from a 2D label image), as "encoder" says for text.
   if (!request.images.empty())
     answer["image_encoder"] = {{"model_id", context.image->model_id()}, {"simulated", context.image->reads_labels()}};
@@ -223,8 +234,10 @@ void append_at_row(fmt::memory_buffer& out, const PointQuery& a, const std::vect
 }  // namespace
 
 std::string answer_at(const AnswerContext& context, const AtRequest& request) {
+  const std::vector<int> before = context.map->submaps_out_of_memory();
   const std::vector<PointQuery> answers =
       context.map->at(request.points, context.queries, context.classify, context.model_check, request.embedding);
+  const std::vector<int> not_searched = map_answers_detail::submaps_not_searched(*context.map, before);
   std::vector<std::string> class_texts;  // each class name quoted and escaped once
   if (context.queries)
     for (const std::string& name : context.queries->names) class_texts.push_back(nlohmann::json(name).dump(
@@ -238,7 +251,7 @@ std::string answer_at(const AnswerContext& context, const AtRequest& request) {
     if (i) out.push_back(',');
     append_at_row(out, answers[i], class_texts, request.embedding);
   }
-  out.append(std::string_view("]}"));
+  fmt::format_to(std::back_inserter(out), R"(],"submaps_not_searched":[{}]}})", fmt::join(not_searched, ","));
   return fmt::to_string(out);
 }
 
@@ -253,6 +266,7 @@ nlohmann::json answer_classes(const AnswerContext& context, const ClassesRequest
                                    context.map->source_kind() == "fleet" ? "up to " : "", n, max_cells));
   const QuerySet& queries = *context.queries;
   std::vector<ClassifiedCell> cells;
+  std::vector<int> not_searched = context.map->submaps_out_of_memory();
   try {
     cells = context.map->classes(queries, request.region, context.classify, context.model_check);
   } catch (const RequestError&) {
@@ -262,6 +276,7 @@ nlohmann::json answer_classes(const AnswerContext& context, const ClassesRequest
   } catch (const Error& e) {
     throw RequestError(400, "", e.what());  // the query set does not fit the map (its checks' message)
   }
+  not_searched = map_answers_detail::submaps_not_searched(*context.map, std::move(not_searched));
   const ClassSummary summary = summarize_classes(cells, queries, request.min_confidence);
   nlohmann::json classes = nlohmann::json::array();
   for (std::size_t k = 0; k < summary.per_class.size(); ++k)
@@ -286,7 +301,8 @@ nlohmann::json answer_classes(const AnswerContext& context, const ClassesRequest
           {"uncertain", summary.uncertain},
           {"unclassified", summary.unclassified},
           {"statistics_unknown", summary.statistics_unknown},
-          {"results", std::move(rows)}};
+          {"results", std::move(rows)},
+          {"submaps_not_searched", std::move(not_searched)}};
 }
 
 nlohmann::json region_json(const std::optional<QueryRegion>& region) { return map_answers_detail::region_json(region); }

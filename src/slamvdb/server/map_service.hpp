@@ -86,6 +86,13 @@ class MapService {
   virtual nlohmann::json changes_since(std::uint64_t /*after*/) const { return nlohmann::json::array(); }
   // Live mode: {"mapping": bool, "scans_done": N, "scans_total": N (0: not known)}; null otherwise.
   virtual nlohmann::json progress() const { return nullptr; }
+  // Live mode: a client follows the map (a GET /api/events stream sent its first event), which
+  // `map --serve-wait-viewer` waits for. Nothing otherwise.
+  virtual void event_stream_opened() const {}
+  // The submaps whose voxels the map's answers leave out now, by id, ascending: live mode's
+  // submaps out of memory (kept in the map file, not read back for questions). A saved map has
+  // them all: none.
+  virtual std::vector<int> submaps_out_of_memory() const { return {}; }
   // The ANN index of top-k questions (GET /healthz "index"): "none", "building" (questions are
   // scored exactly meanwhile), "ready" or "failed" (exact, the reason logged).
   virtual std::string index_state() const { return "none"; }

@@ -61,7 +61,8 @@ void MapEventStreams::open(httplib::Response& res) {
         std::uint64_t changes = map_.changes();
         const auto now = std::chrono::steady_clock::now();
         std::string text;
-        if (!stream->sent) text = "retry: 2000\n";
+        const bool first = !stream->sent;
+        if (first) text = "retry: 2000\n";
         if (!stream->sent || *stream->sent != changes) {
           // Live mode: what changed since the last event this stream sent (none on the first: the
           // page loads the whole map then), then the counter.
@@ -84,7 +85,9 @@ void MapEventStreams::open(httplib::Response& res) {
           return true;
         }
         stream->last_write = now;
-        return sink.write(text.data(), text.size());
+        if (!sink.write(text.data(), text.size())) return false;
+        if (first) map_.event_stream_opened();  // from now on the client hears of every change
+        return true;
       },
       [this](bool) { open_.fetch_sub(1); });
 }
