@@ -13,6 +13,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdint>
+#include <limits>
 
 #include "slamvdb/core/embedding_kernels.hpp"
 #include "slamvdb/core/error.hpp"
@@ -46,12 +47,14 @@ std::size_t default_lists(std::size_t cells) {
 struct AnnIndex::Impl {
   std::size_t dim = 0;
   Eigen::MatrixXf centroid_rows;     // lists x dim: a question's list similarities, without OpenMP
-  ann_codes::Sq8Codebook codebook;
+  std::vector<ann_codes::Sq8Codebook> codebooks;  // per list: of its cells' residuals to its centroid
   std::vector<std::size_t> list_begin;  // list l's cells: [list_begin[l], list_begin[l + 1])
   std::vector<uint32_t> positions;      // cell positions list by list, ascending within a list
-  std::vector<uint8_t> codes;           // their codes, codebook.stride() bytes each, in the same order
+  // Their codes' planes, plane_bytes() each, in the same order: the coarse one is scanned, the fine
+  // one read for the best few of that scan.
+  std::vector<uint8_t> coarse, fine;
   std::size_t index_size = 0;
-  std::size_t rerank_factor = 4, rerank_min = 256;
+  std::size_t rerank_factor = 4, rerank_min = 256, refine_factor = 2;
   AnnIndexStats stats;
 };
 
@@ -64,6 +67,7 @@ AnnIndex::AnnIndex(const SemanticMap& map, const AnnOptions& options) : impl_(st
   m.dim = dim;
   m.rerank_factor = std::max<std::size_t>(options.rerank_factor, 1);
   m.rerank_min = options.rerank_min;
+  m.refine_factor = std::max<std::size_t>(options.refine_factor, 1);
   map.read_index([&](const GlobalIndex& index) {
     const std::size_t n = index.size();
     if (index.size() > UINT32_MAX) throw Error("the ANN index holds at most 2^32 cells");
@@ -79,8 +83,7 @@ AnnIndex::AnnIndex(const SemanticMap& map, const AnnOptions& options) : impl_(st
           valid[j] = unit_embedding_of(index, positions[j], batch.data() + j * dim, dim) ? 1 : 0;
       });
     };
-    // k-means on an evenly spaced sample (deterministic: the same map gives the same index); the
-    // codebook's ranges come from the same sample.
+    // k-means on an evenly spaced sample (deterministic: the same map gives the same index).
     const std::size_t wanted_lists = options.lists ? options.lists : default_lists(n);
     const std::size_t sample_wanted = options.training_cells ? options.training_cells : 64 * wanted_lists;
     const std::size_t sample_target = std::min(std::max<std::size_t>(sample_wanted, 1), n);
@@ -95,7 +98,6 @@ AnnIndex::AnnIndex(const SemanticMap& map, const AnnOptions& options) : impl_(st
     if (options.stop && *options.stop) throw Error("the ANN index build was stopped");
     if (sample == 0) throw Error("the map has no semantic cell with a non-zero embedding to index");
     const std::size_t lists = std::min(wanted_lists, sample);
-    m.codebook = ann_codes::Sq8Codebook(training.data(), sample, dim);
     faiss::ClusteringParameters params;
     params.niter = options.iterations;
     params.spherical = true;  // centroids on the unit sphere: inner product is cosine
@@ -110,51 +112,88 @@ AnnIndex::AnnIndex(const SemanticMap& map, const AnnOptions& options) : impl_(st
     training = {};
     m.centroid_rows = Eigen::Map<const Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>(
         centroids.get_xb(), static_cast<Eigen::Index>(lists), static_cast<Eigen::Index>(dim));
-    // Each cell into the list of its most similar centroid (faiss batches this with BLAS), its code
-    // written in cell order first, then moved list by list.
-    const std::size_t stride = m.codebook.stride();
-    std::vector<uint8_t> cell_codes(n * stride);
+    // Two passes over the cells, a batch at a time. First each cell goes into the list of its most
+    // similar centroid (faiss batches this with BLAS) and widens its list's residual ranges; then
+    // (decoding again is cheap beside the assignment) its residual is coded with its list's ranges.
+    // Ranges per list, not for the whole map: a list of cells between two kinds of surface spans a
+    // wide range where the lists of one kind span a narrow one, and their codes must tell those
+    // cells apart to a fraction of their noise.
     std::vector<int32_t> cell_list(n, -1);
+    std::vector<float> low(lists * dim, std::numeric_limits<float>::infinity());
+    std::vector<float> high(lists * dim, -std::numeric_limits<float>::infinity());
     std::vector<float> distance;
     std::vector<FaissId> label;
+    const auto residual = [&](std::size_t j, std::size_t l) {
+      float* x = batch.data() + j * dim;
+      const float* c = centroids.get_xb() + l * dim;
+      for (std::size_t d = 0; d < dim; ++d) x[d] -= c[d];
+      return x;
+    };
     constexpr std::size_t kBatch = 16384;
-    for (std::size_t b = 0; b < n; b += kBatch) {
+    const auto batch_of = [&](std::size_t b) {
       if (options.stop && *options.stop) throw Error("the ANN index build was stopped");
       const std::size_t k = std::min(kBatch, n - b);
       positions.resize(k);
       for (std::size_t j = 0; j < k; ++j) positions[j] = b + j;
       decode_batch(positions);
+      return k;
+    };
+    for (std::size_t b = 0; b < n; b += kBatch) {
+      const std::size_t k = batch_of(b);
       distance.resize(k);
       label.resize(k);
       centroids.search(static_cast<FaissId>(k), batch.data(), 1, distance.data(), label.data());
-      tbb::parallel_for(tbb::blocked_range<std::size_t>(0, k, 1024), [&](const auto& range) {
-        for (std::size_t j = range.begin(); j != range.end(); ++j) {
-          if (!valid[j] || label[j] < 0) continue;
-          cell_list[b + j] = static_cast<int32_t>(label[j]);
-          m.codebook.encode(batch.data() + j * dim, cell_codes.data() + (b + j) * stride);
+      for (std::size_t j = 0; j < k; ++j) {
+        if (!valid[j] || label[j] < 0) continue;
+        const auto l = static_cast<std::size_t>(label[j]);
+        cell_list[b + j] = static_cast<int32_t>(l);
+        const float* x = residual(j, l);
+        for (std::size_t d = 0; d < dim; ++d) {
+          low[l * dim + d] = std::min(low[l * dim + d], x[d]);
+          high[l * dim + d] = std::max(high[l * dim + d], x[d]);
         }
-      });
+      }
     }
+    m.codebooks.resize(lists);
+    for (std::size_t l = 0; l < lists; ++l)
+      m.codebooks[l] = ann_codes::Sq8Codebook(std::vector<float>(low.begin() + static_cast<std::ptrdiff_t>(l * dim),
+                                                                 low.begin() + static_cast<std::ptrdiff_t>((l + 1) * dim)),
+                                              std::vector<float>(high.begin() + static_cast<std::ptrdiff_t>(l * dim),
+                                                                 high.begin() + static_cast<std::ptrdiff_t>((l + 1) * dim)));
     m.list_begin.assign(lists + 1, 0);
     for (const int32_t l : cell_list)
       if (l >= 0) ++m.list_begin[static_cast<std::size_t>(l) + 1];
     for (std::size_t l = 0; l < lists; ++l) m.list_begin[l + 1] += m.list_begin[l];
     const std::size_t cells = m.list_begin[lists];
+    const std::size_t bytes = m.codebooks[0].plane_bytes();
     m.positions.resize(cells);
-    m.codes.resize(cells * stride);
+    m.coarse.resize(cells * bytes);
+    m.fine.resize(cells * bytes);
+    std::vector<std::size_t> slot(n);
     std::vector<std::size_t> next(m.list_begin.begin(), m.list_begin.end() - 1);
     for (std::size_t i = 0; i < n; ++i) {
       if (cell_list[i] < 0) continue;
-      const std::size_t at = next[static_cast<std::size_t>(cell_list[i])]++;
-      m.positions[at] = static_cast<uint32_t>(i);
-      std::copy_n(cell_codes.data() + i * stride, stride, m.codes.data() + at * stride);
+      slot[i] = next[static_cast<std::size_t>(cell_list[i])]++;
+      m.positions[slot[i]] = static_cast<uint32_t>(i);
+    }
+    for (std::size_t b = 0; b < n; b += kBatch) {
+      const std::size_t k = batch_of(b);
+      tbb::parallel_for(tbb::blocked_range<std::size_t>(0, k, 1024), [&](const auto& range) {
+        for (std::size_t j = range.begin(); j != range.end(); ++j) {
+          const int32_t l = cell_list[b + j];
+          if (l < 0) continue;
+          const std::size_t at = slot[b + j];
+          m.codebooks[static_cast<std::size_t>(l)].encode(residual(j, static_cast<std::size_t>(l)), m.coarse.data() + at * bytes,
+                                                         m.fine.data() + at * bytes);
+        }
+      });
     }
     m.stats.cells = cells;
     m.stats.lists = lists;
   });
   m.stats.probes = options.probes ? std::min(options.probes, m.stats.lists) : std::max<std::size_t>(1, m.stats.lists / 8);
-  m.stats.memory_bytes = m.stats.lists * dim * sizeof(float) + m.positions.size() * sizeof(uint32_t) +
-                         m.codes.size() + m.list_begin.size() * sizeof(std::size_t) + dim * 2 * sizeof(float);
+  m.stats.memory_bytes = m.stats.lists * dim * sizeof(float) * 3 + m.positions.size() * sizeof(uint32_t) +
+                         m.coarse.size() + m.fine.size() + m.list_begin.size() * sizeof(std::size_t);
   m.stats.build_seconds = std::chrono::duration<double>(Clock::now() - start).count();
 }
 
@@ -177,45 +216,67 @@ std::vector<std::size_t> AnnIndex::candidates(std::span<const float> unit_query,
   });
   const std::size_t wanted = std::min(probes ? probes : m.stats.probes, lists);
   const std::size_t keep = std::max({m.rerank_factor * top_k, m.rerank_min, std::size_t{1}});
-  // The probed lists' codes stream from memory; the best `keep` by approximate score are kept in a
-  // buffer of twice that, cut back to `keep` whenever full (the cut's score bars later cells).
-  const std::vector<int16_t> weights = m.codebook.weights(unit_query.data());
-  const std::size_t stride = m.codebook.stride();
+  const std::size_t shortlist = m.refine_factor * keep;
+  // The probed lists' coarse planes stream from memory; the best `shortlist` cells by coarse score
+  // are kept in a buffer of twice that, cut back whenever full (the cut's score bars later cells).
+  // A cell's approximate score is its list's centroid similarity plus its residual's (codes of the
+  // residuals: the constant part of the decoded value is the same for every cell and left out).
+  const std::size_t bytes = m.codebooks[0].plane_bytes();
   struct Kept {
-    int32_t score;
-    uint32_t position;
+    float score;
+    uint32_t slot;  // in the list arrays
+    uint32_t rank;  // of its list in `order`
   };
-  const auto ahead = [](const Kept& a, const Kept& b) { return a.score != b.score ? a.score > b.score : a.position < b.position; };
+  const auto ahead = [](const Kept& a, const Kept& b) { return a.score != b.score ? a.score > b.score : a.slot < b.slot; };
   std::vector<Kept> best;
-  best.reserve(2 * keep);
-  int32_t bar = INT32_MIN;
-  const auto cut = [&] {
-    std::nth_element(best.begin(), best.begin() + static_cast<std::ptrdiff_t>(keep - 1), best.end(), ahead);
-    best.resize(keep);
-    bar = best[keep - 1].score;
+  best.reserve(2 * shortlist);
+  float bar = -std::numeric_limits<float>::infinity();
+  const auto cut = [&](std::size_t to) {
+    std::nth_element(best.begin(), best.begin() + static_cast<std::ptrdiff_t>(to - 1), best.end(), ahead);
+    best.resize(to);
+    bar = best[to - 1].score;
   };
+  std::vector<ann_codes::QueryWeights> weights;  // of the lists looked at, by rank
   constexpr std::size_t kChunk = 512;
   int32_t scores[kChunk];
-  std::size_t count = 0;
+  std::size_t count = 0, scored = 0;
   for (std::size_t r = 0; r < lists && (r < wanted || count < top_k); ++r) {
     deadline.check("scanning the ANN index's lists");
-    const std::size_t begin = m.list_begin[order[r]], end = m.list_begin[order[r] + 1];
+    const std::size_t l = order[r], begin = m.list_begin[l], end = m.list_begin[l + 1];
     count += end - begin;
+    const float base = similarity[static_cast<Eigen::Index>(l)];
+    const ann_codes::QueryWeights& w = weights.emplace_back(m.codebooks[l].weights(unit_query.data()));
+    // The largest coarse score a cell of this list can get: below the bar, none of its cells would
+    // be kept, so its codes are not read (the answer is the same).
+    if (base + w.coarse_most < bar) continue;
+    scored += end - begin;
     for (std::size_t c = begin; c < end; c += kChunk) {
       const std::size_t k = std::min(kChunk, end - c);
-      ann_codes::score_codes(m.codes.data() + c * stride, k, stride, weights.data(), scores);
+      ann_codes::score_nibbles(m.coarse.data() + c * bytes, k, bytes, w.coarse.data(), scores);
       for (std::size_t j = 0; j < k; ++j) {
-        if (scores[j] < bar) continue;
-        best.push_back({scores[j], m.positions[c + j]});
-        if (best.size() == 2 * keep) cut();
+        const float score = base + (w.coarse_offset + w.coarse_unit * static_cast<float>(scores[j]));
+        if (score < bar) continue;
+        best.push_back({score, static_cast<uint32_t>(c + j), static_cast<uint32_t>(r)});
+        if (best.size() == 2 * shortlist) cut(shortlist);
       }
     }
   }
-  if (best.size() > keep) cut();
-  if (scanned) *scanned = count;
+  if (best.size() > shortlist) cut(shortlist);
+  // The shortlist ordered by the whole 8-bit codes (the fine plane joined to the coarse one).
+  std::vector<uint8_t> code(2 * bytes);
+  for (Kept& k : best) {
+    ann_codes::join_planes(m.coarse.data() + std::size_t{k.slot} * bytes, m.fine.data() + std::size_t{k.slot} * bytes,
+                           bytes, code.data());
+    const ann_codes::QueryWeights& w = weights[k.rank];
+    int32_t fine = 0;
+    ann_codes::score_codes(code.data(), 1, 2 * bytes, w.fine.data(), &fine);
+    k.score = similarity[static_cast<Eigen::Index>(order[k.rank])] + (w.fine_offset + w.fine_unit * static_cast<float>(fine));
+  }
+  if (best.size() > keep) cut(keep);
+  if (scanned) *scanned = scored;
   std::vector<std::size_t> out;
   out.reserve(best.size());
-  for (const Kept& k : best) out.push_back(k.position);
+  for (const Kept& k : best) out.push_back(m.positions[k.slot]);
   std::sort(out.begin(), out.end());
   return out;
 }

@@ -2,10 +2,11 @@
 // An approximate nearest-neighbour index over a map's semantic cells, for top-k questions that
 // exact scoring cannot answer fast enough (issue 21, "Speed": `slamvdb serve` with many clients).
 // An inverted file: faiss's spherical k-means groups the cells' unit embeddings into lists, and each
-// list keeps its cells' positions and compact codes (one byte per dimension, ann_index_codes.hpp)
-// contiguously. A question streams the codes of the lists whose centroids are most similar to it,
-// keeps the best few cells by approximate score, and similarity_search scores those exactly from
-// the map's own storage. Answers are therefore exact scores of a subset of the cells; what can be
+// list keeps its cells' positions and compact codes of their residuals to the list's centroid (one
+// byte per dimension in two 4-bit planes, ann_index_codes.hpp) contiguously. A question streams the
+// coarse plane of the lists whose centroids are most similar to it (skipping a list whose codes'
+// ranges cannot reach the best kept so far), orders the best of that by the whole codes, and
+// similarity_search scores the best few exactly from the map's own storage. Answers are therefore exact scores of a subset of the cells; what can be
 // missed is a cell of a list not looked at, or one the codes ranked below the re-scored few (recall,
 // measured in ann_index_test.cpp and docs/serve-design.md).
 // faiss is a PRIVATE dependency of the query part: nothing of it shows here.
@@ -29,6 +30,9 @@ struct AnnOptions {
   // approximate score of the probed lists' codes.
   std::size_t rerank_factor = 4;
   std::size_t rerank_min = 256;
+  // Cells ordered by their whole 8-bit codes per question: the best refine_factor * (the re-rank
+  // count) by the coarse plane (4 bits per dimension) that is scanned for every probed cell.
+  std::size_t refine_factor = 2;
   // Set by another thread to stop a build early (the constructor then throws Error). Null: never.
   const std::atomic<bool>* stop = nullptr;
 };
@@ -55,7 +59,7 @@ class AnnIndex {
   // The global-index positions of the cells to score exactly for the best `top_k` of `unit_query`
   // (dim floats, norm 1): of the cells of the `probes` (0: the default) most similar lists (more
   // lists while they hold fewer than `top_k` cells), the re-rank count best by their codes. In
-  // ascending position (the order the global index holds them). `scanned`: codes scored.
+  // ascending position (the order the global index holds them). `scanned`: coarse codes scored.
   // `deadline` is checked before each list: once it passes, DeadlineExceeded is thrown.
   std::vector<std::size_t> candidates(std::span<const float> unit_query, std::size_t probes, std::size_t top_k,
                                       std::size_t* scanned = nullptr, const Deadline& deadline = {}) const;
