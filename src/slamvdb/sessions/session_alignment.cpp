@@ -34,6 +34,7 @@ void AlignmentConfig::validate() const {
   require(min_overlap > 0.0 && min_overlap <= 1.0, fmt::format("min overlap {} must be in (0, 1]", min_overlap));
   require(min_structure_overlap >= 0.0 && min_structure_overlap <= 1.0, "min structure overlap must be in [0, 1]");
   require(guided_radius > 0.0, fmt::format("guided radius {} m must be > 0", guided_radius));
+  require(refine_points >= 1000, fmt::format("refine points {} must be >= 1000", refine_points));
   require(refine_voxel > 0.0, fmt::format("refine voxel {} m must be > 0", refine_voxel));
   require(min_refined_overlap >= 0.0 && min_refined_overlap <= 1.0,
           fmt::format("min refined overlap {} must be in [0, 1]", min_refined_overlap));
@@ -117,7 +118,13 @@ RefinedClouds refine_clouds(const std::vector<Vec3d>& base_points, const std::ve
   // The source at twice the cloud voxel: the dense target gives each of its points a near
   // neighbour, and every point costs 27 hash look-ups per iteration (the refinement was half
   // the alignment's time with the source at the cloud voxel, for no gain in accuracy).
-  const std::vector<Vec3d> source = localization::voxel_downsample(other_points, 2.0 * config.places.cloud_voxel);
+  // At most refine_points of them (an unbiased subset): a rigid transform over a whole map is
+  // fixed long before every metre of a 3 km drive is used, and the cost grows with the points.
+  const std::vector<Vec3d> downsampled = localization::voxel_downsample(other_points, 2.0 * config.places.cloud_voxel);
+  const std::vector<Vec3d> source = downsampled.size() > config.refine_points
+                                        ? unbiased_subset(downsampled, (downsampled.size() + config.refine_points - 1) /
+                                                                           config.refine_points)
+                                        : downsampled;
   Pose T = start;
   for (const double distance : {2.0 * config.places.cloud_voxel, config.places.cloud_voxel, voxel}) {
     localization::IcpOptions icp;
@@ -138,7 +145,8 @@ RefinedClouds refine_clouds(const std::vector<Vec3d>& base_points, const std::ve
     surface.voxel = voxel;
     surface.normal_radius = 2.4 * voxel;
     surface.max_distance = voxel;
-    const std::vector<Vec3d> surface_source = unbiased_subset(other_points, 4);
+    const std::vector<Vec3d> surface_source = unbiased_subset(
+        other_points, std::max<uint64_t>(4, (other_points.size() + config.refine_points - 1) / config.refine_points));
     std::vector<Vec3d> surface_start;
     surface_start.reserve(surface_source.size());
     for (const Vec3d& p : surface_source) surface_start.push_back(T * p);

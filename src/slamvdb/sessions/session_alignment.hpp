@@ -61,6 +61,10 @@ struct AlignmentConfig {
   // Then point-to-plane on the base's surface (surface_refinement.hpp); off only to measure
   // what it corrects.
   bool surface_refinement = true;
+  // Points of the other session each refinement step uses at most (ICP and surface step, each an
+  // unbiased subset): the refinement over a 3 km map's winning places otherwise uses hundreds of
+  // thousands. Per-submap refinements stay under it.
+  std::size_t refine_points = 60000;
   // The refined alignment's overlap (the other session's voxels near the winning places that lie
   // on the base's) must reach this, else refused: pairs of two different terrains can agree (3-5
   // pairs of 100-120 m SIMULATED drives on different seeds did, each pair passing its own tests),
