@@ -46,14 +46,17 @@ const ThreeKmSessions& three_km_sessions() {
   return s;
 }
 
-// Aligns the two sessions (Arg: threads). Counters: places, verified and consistent pairs, and the
-// error at the route's middle (metres).
+// Aligns the two sessions (Args: threads, AlignmentConfig::survey_places: 48 the default, 0 every
+// candidate verified from its descriptor). Counters: places, verified and consistent pairs, and
+// the error at the route's middle (metres).
 void BM_AlignSessions3km(benchmark::State& state) {
   tbb::global_control threads(tbb::global_control::max_allowed_parallelism, static_cast<std::size_t>(state.range(0)));
   const ThreeKmSessions& s = three_km_sessions();
+  sessions::AlignmentConfig config;
+  config.survey_places = static_cast<std::size_t>(state.range(1));
   sessions::SessionAlignment r;
   for (auto _ : state) {
-    r = sessions::align_sessions(s.base, s.other);
+    r = sessions::align_sessions(s.base, s.other, config);
     benchmark::DoNotOptimize(r);
   }
   if (!r.aligned) {
@@ -65,11 +68,19 @@ void BM_AlignSessions3km(benchmark::State& state) {
   state.counters["places"] = static_cast<double>(r.other_places);
   state.counters["candidates"] = static_cast<double>(r.candidate_pairs);
   state.counters["verified"] = static_cast<double>(r.verified.size());
+  state.counters["surveyed"] = static_cast<double>(r.surveyed_places);
+  state.counters["guided"] = static_cast<double>(r.guided_pairs);
   state.counters["consistent"] = static_cast<double>(r.consistent.size());
   state.counters["error_m"] = (r.T_base_other * mid - s.T_other_world.inverse() * mid).norm();
   state.SetLabel(fmt::format("SIMULATED, {} + {} submaps", s.base.size(), s.other.size()));
 }
-BENCHMARK(BM_AlignSessions3km)->Arg(1)->Arg(2)->Unit(benchmark::kSecond)->Iterations(1)->UseRealTime();
+BENCHMARK(BM_AlignSessions3km)
+    ->Args({1, 48})
+    ->Args({2, 48})
+    ->Args({2, 0})
+    ->Unit(benchmark::kSecond)
+    ->Iterations(1)
+    ->UseRealTime();
 
 // A session as a map with semantics: every occupied voxel also holds an embedding (count 1-4).
 SemanticMap semantic_session_map(const std::vector<sessions::SessionSubmap>& submaps, const std::string& source) {

@@ -41,6 +41,8 @@ nlohmann::json alignment_report_json(const sessions::MapAlignment& result) {
                       {"base_places", a.base_places},
                       {"other_places", a.other_places},
                       {"candidate_pairs", a.candidate_pairs},
+                      {"surveyed_places", a.surveyed_places},
+                      {"guided_pairs", a.guided_pairs},
                       {"verified_pairs", a.verified.size()},
                       {"consistent_pairs", a.consistent.size()},
                       {"rival_pairs", a.rival_pairs},
@@ -78,6 +80,9 @@ std::string alignment_report_text(const sessions::MapAlignment& result) {
                                 "rival set {}\n",
                                 a.base_places, a.other_places, a.candidate_pairs, a.verified.size(), a.consistent.size(),
                                 a.rival_pairs);
+  if (a.surveyed_places > 0)
+    out += fmt::format("survey       {} places decided; {} pairs verified guided by its alignment\n", a.surveyed_places,
+                       a.guided_pairs);
   std::string rejected;
   for (std::size_t r = 0; r < a.rejections.size(); ++r)
     if (a.rejections[r])

@@ -5,6 +5,7 @@
 
 #include <Eigen/Cholesky>
 #include <cmath>
+#include <span>
 
 #include "slamvdb/core/se3.hpp"
 #include "slamvdb/localization/preprocessing.hpp"
@@ -126,19 +127,17 @@ AlignmentQuality alignment_quality(const std::vector<Vec3d>& source, const Voxel
   return q;
 }
 
-std::optional<Pose> align_coarse_to_fine(const std::vector<Vec3d>& source, const VoxelHashMap& coarse_target,
-                                         const VoxelHashMap& fine_target, const Pose& guess, double voxel) {
-  const std::vector<Vec3d> fine_source = voxel_downsample(source, 2.0 * voxel);
-  const std::vector<Vec3d> coarse_source = voxel_downsample(source, 4.0 * voxel);
-  struct Stage {
-    const VoxelHashMap* target;
-    const std::vector<Vec3d>* source;
-    double max_distance;
-  };
-  const Stage stages[] = {{&coarse_target, &coarse_source, 9.0 * voxel}, {&coarse_target, &coarse_source, 4.0 * voxel},
-                          {&fine_target, &fine_source, 2.0 * voxel}, {&fine_target, &fine_source, voxel}};
+namespace {
+
+struct IcpStage {
+  const VoxelHashMap* target;
+  const std::vector<Vec3d>* source;
+  double max_distance;
+};
+
+std::optional<Pose> run_icp_stages(std::span<const IcpStage> stages, const Pose& guess) {
   Pose T = guess;
-  for (const Stage& stage : stages) {
+  for (const IcpStage& stage : stages) {
     IcpOptions icp;
     icp.max_correspondence_distance = stage.max_distance;
     icp.kernel_scale = stage.max_distance / 9.0;
@@ -150,6 +149,24 @@ std::optional<Pose> align_coarse_to_fine(const std::vector<Vec3d>& source, const
     T = r.T_target_source;
   }
   return T;
+}
+
+}  // namespace
+
+std::optional<Pose> align_coarse_to_fine(const std::vector<Vec3d>& source, const VoxelHashMap& coarse_target,
+                                         const VoxelHashMap& fine_target, const Pose& guess, double voxel) {
+  const std::vector<Vec3d> fine_source = voxel_downsample(source, 2.0 * voxel);
+  const std::vector<Vec3d> coarse_source = voxel_downsample(source, 4.0 * voxel);
+  const IcpStage stages[] = {{&coarse_target, &coarse_source, 9.0 * voxel}, {&coarse_target, &coarse_source, 4.0 * voxel},
+                             {&fine_target, &fine_source, 2.0 * voxel}, {&fine_target, &fine_source, voxel}};
+  return run_icp_stages(stages, guess);
+}
+
+std::optional<Pose> align_fine(const std::vector<Vec3d>& source, const VoxelHashMap& fine_target, const Pose& guess,
+                               double voxel) {
+  const std::vector<Vec3d> fine_source = voxel_downsample(source, 2.0 * voxel);
+  const IcpStage stages[] = {{&fine_target, &fine_source, 2.0 * voxel}, {&fine_target, &fine_source, voxel}};
+  return run_icp_stages(stages, guess);
 }
 
 }  // namespace slamvdb::localization

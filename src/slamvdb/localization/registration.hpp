@@ -37,6 +37,11 @@ IcpResult align_point_to_point(const std::vector<Vec3d>& source, const VoxelHash
 // sessions. Returns T_target_source, or nothing when a stage finds too few correspondences.
 std::optional<Pose> align_coarse_to_fine(const std::vector<Vec3d>& source, const VoxelHashMap& coarse_target,
                                          const VoxelHashMap& fine_target, const Pose& guess, double voxel);
+// Its last two stages alone (2v and v on `fine_target`, the source at 2v), for a guess already
+// within about a voxel: a transform found from other evidence (the alignment of sessions guides the
+// verification of most places by the transform its survey of a few found).
+std::optional<Pose> align_fine(const std::vector<Vec3d>& source, const VoxelHashMap& fine_target, const Pose& guess,
+                               double voxel);
 
 struct AlignmentQuality {
   std::size_t points = 0;

@@ -20,8 +20,6 @@ void ConsensusConfig::validate() const {
           "max ambiguous place fraction must be in [0, 1]");
 }
 
-namespace {
-
 bool verified_pairs_agree(const VerifiedPair& a, const VerifiedPair& b, const ConsensusConfig& config) {
   if (Eigen::AngleAxisd((a.T_base_other.inverse() * b.T_base_other).linear()).angle() > config.consensus_rotation)
     return false;
@@ -29,8 +27,6 @@ bool verified_pairs_agree(const VerifiedPair& a, const VerifiedPair& b, const Co
     if ((a.T_base_other * x - b.T_base_other * x).norm() > config.consensus_translation) return false;
   return true;
 }
-
-}  // namespace
 
 PairConsensus find_pair_consensus(const std::vector<VerifiedPair>& pairs, const ConsensusConfig& config) {
   config.validate();

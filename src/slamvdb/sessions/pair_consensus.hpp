@@ -49,4 +49,8 @@ struct PairConsensus {
 
 PairConsensus find_pair_consensus(const std::vector<VerifiedPair>& pairs, const ConsensusConfig& config);
 
+// Whether two pairs agree: rotations within consensus_rotation, and both places moved by either
+// transform to within consensus_translation of each other.
+bool verified_pairs_agree(const VerifiedPair& a, const VerifiedPair& b, const ConsensusConfig& config);
+
 }  // namespace slamvdb::sessions

@@ -15,6 +15,7 @@
 #include "slamvdb/localization/preprocessing.hpp"
 #include "slamvdb/localization/registration.hpp"
 #include "slamvdb/localization/voxel_hash_map.hpp"
+#include "slamvdb/sessions/place_pair_verification.hpp"
 #include "slamvdb/sessions/points_near_places.hpp"
 #include "slamvdb/sessions/surface_refinement.hpp"
 
@@ -32,6 +33,8 @@ void AlignmentConfig::validate() const {
   require(inlier_distance > 0.0 && max_rmse > 0.0, "inlier distance and max RMSE must be > 0");
   require(min_overlap > 0.0 && min_overlap <= 1.0, fmt::format("min overlap {} must be in (0, 1]", min_overlap));
   require(min_structure_overlap >= 0.0 && min_structure_overlap <= 1.0, "min structure overlap must be in [0, 1]");
+  require(guided_radius > 0.0, fmt::format("guided radius {} m must be > 0", guided_radius));
+  require(refine_points >= 1000, fmt::format("refine points {} must be >= 1000", refine_points));
   require(refine_voxel > 0.0, fmt::format("refine voxel {} m must be > 0", refine_voxel));
   require(min_refined_overlap >= 0.0 && min_refined_overlap <= 1.0,
           fmt::format("min refined overlap {} must be in [0, 1]", min_refined_overlap));
@@ -57,40 +60,6 @@ const char* to_string(PairRejection reason) {
 
 namespace {
 
-struct AlignmentSession {
-  const std::vector<SessionSubmap>* submaps;
-  std::vector<std::vector<Vec3d>> clouds;        // thinned to the places' cloud voxel, submap frame
-  SubmapClouds dense_clouds;                      // thinned to the refinement voxel, submap frame
-  std::vector<Pose> T_world_submaps;
-
-  std::vector<Place> places;
-
-  AlignmentSession(const std::vector<SessionSubmap>& s, const AlignmentConfig& config) : submaps(&s) {
-    PlaceConfig dense = config.places;
-    dense.cloud_voxel = config.refine_voxel;
-    clouds.resize(s.size());
-    std::vector<std::vector<Vec3d>> dense_submap_clouds(s.size());
-    tbb::parallel_for(std::size_t{0}, s.size(), [&](std::size_t i) {
-      clouds[i] = thinned_cloud(s[i], config.places);
-      dense_submap_clouds[i] = thinned_cloud(s[i], dense);
-    });
-    for (const SessionSubmap& submap : s) T_world_submaps.push_back(submap.T_world_submap);
-    dense_clouds = SubmapClouds(std::move(dense_submap_clouds));
-    places = make_places(clouds, config.places);
-  }
-  Pose T_world_place(std::size_t place) const {
-    const Place& p = places[place];
-    return (*submaps)[p.submap].T_world_submap * p.T_submap_place();
-  }
-  // The place's voxels within `radius`, in the place frame (z above its ground level).
-  std::vector<Vec3d> around(std::size_t place, double radius) const {
-    return points_around(clouds[places[place].submap], places[place], radius);
-  }
-  std::vector<Vec3d> dense_around(std::size_t place, double radius) const {
-    return points_around(dense_clouds[places[place].submap], places[place], radius);
-  }
-};
-
 Pose yaw_pose(double yaw) {
   Pose T = Pose::Identity();
   T.linear() = Eigen::AngleAxisd(yaw, Vec3d::UnitZ()).toRotationMatrix();
@@ -98,48 +67,6 @@ Pose yaw_pose(double yaw) {
 }
 
 double rotation_angle(const Pose& T) { return Eigen::AngleAxisd(T.linear()).angle(); }
-
-// Verifies one candidate pair; fills `pair` and returns nothing when it is accepted.
-std::optional<PairRejection> verify_session_pair(const AlignmentSession& base, std::size_t base_place,
-                                                 const AlignmentSession& other, std::size_t other_place,
-                                                 const Pose& T_bplace_oplace_guess,
-                                                 const AlignmentConfig& config, VerifiedPair& pair) {
-  const double voxel = config.places.cloud_voxel;
-  const double radius = config.places.scan_context.max_radius;
-  // The base side reaches farther: the guess has no translation and the place centres of the
-  // two sessions may be metres apart.
-  // Five points per coarse voxel (the loop closer keeps 20): the coarse stages only have to bring
-  // the guess within a metre, and every nearest-neighbour query reads 27 voxels' points.
-  VoxelHashMap fine(voxel, 1e9, 20), coarse(3.0 * voxel, 1e9, 5), dense(voxel, 1e9, 20);
-  const std::vector<Vec3d> target = base.around(base_place, radius + 9.0 * voxel);
-  fine.add_points(target);
-  coarse.add_points(target);
-  // The tests measure against the denser cloud (see max_rmse); ICP does not need it.
-  dense.add_points(base.dense_around(base_place, radius + 9.0 * voxel));
-  const std::vector<Vec3d> source = other.around(other_place, radius);
-  const std::optional<Pose> aligned = localization::align_coarse_to_fine(source, coarse, fine, T_bplace_oplace_guess, voxel);
-  if (!aligned) return PairRejection::kIcpFailed;
-  const localization::AlignmentQuality quality =
-      localization::alignment_quality(source, dense, *aligned, config.inlier_distance);
-  pair.overlap = quality.inlier_fraction();
-  pair.rmse = quality.inlier_rmse;
-  if (pair.overlap < config.min_overlap) return PairRejection::kLowOverlap;
-  if (pair.rmse > config.max_rmse) return PairRejection::kHighRmse;
-  std::vector<Vec3d> structure;
-  for (const Vec3d& p : source)
-    if (p.z() > config.structure_height) structure.push_back(p);
-  if (structure.size() < config.min_structure_voxels) return PairRejection::kTooLittleStructure;
-  pair.structure_overlap =
-      localization::alignment_quality(structure, dense, *aligned, config.inlier_distance).inlier_fraction();
-  if (pair.structure_overlap < config.min_structure_overlap) return PairRejection::kLowStructureOverlap;
-  pair.base_place = base_place;
-  pair.other_place = other_place;
-  pair.base_submap_id = (*base.submaps)[base.places[base_place].submap].id;
-  pair.other_submap_id = (*other.submaps)[other.places[other_place].submap].id;
-  pair.other_place_world = other.T_world_place(other_place).translation();
-  pair.T_base_other = base.T_world_place(base_place) * *aligned * other.T_world_place(other_place).inverse();
-  return std::nullopt;
-}
 
 // The loop closer's consistency test with a prior in place of odometry.
 bool agrees_with_prior(const VerifiedPair& pair, const AlignmentPrior& prior) {
@@ -191,7 +118,13 @@ RefinedClouds refine_clouds(const std::vector<Vec3d>& base_points, const std::ve
   // The source at twice the cloud voxel: the dense target gives each of its points a near
   // neighbour, and every point costs 27 hash look-ups per iteration (the refinement was half
   // the alignment's time with the source at the cloud voxel, for no gain in accuracy).
-  const std::vector<Vec3d> source = localization::voxel_downsample(other_points, 2.0 * config.places.cloud_voxel);
+  // At most refine_points of them (an unbiased subset): a rigid transform over a whole map is
+  // fixed long before every metre of a 3 km drive is used, and the cost grows with the points.
+  const std::vector<Vec3d> downsampled = localization::voxel_downsample(other_points, 2.0 * config.places.cloud_voxel);
+  const std::vector<Vec3d> source = downsampled.size() > config.refine_points
+                                        ? unbiased_subset(downsampled, (downsampled.size() + config.refine_points - 1) /
+                                                                           config.refine_points)
+                                        : downsampled;
   Pose T = start;
   for (const double distance : {2.0 * config.places.cloud_voxel, config.places.cloud_voxel, voxel}) {
     localization::IcpOptions icp;
@@ -212,7 +145,8 @@ RefinedClouds refine_clouds(const std::vector<Vec3d>& base_points, const std::ve
     surface.voxel = voxel;
     surface.normal_radius = 2.4 * voxel;
     surface.max_distance = voxel;
-    const std::vector<Vec3d> surface_source = unbiased_subset(other_points, 4);
+    const std::vector<Vec3d> surface_source = unbiased_subset(
+        other_points, std::max<uint64_t>(4, (other_points.size() + config.refine_points - 1) / config.refine_points));
     std::vector<Vec3d> surface_start;
     surface_start.reserve(surface_source.size());
     for (const Vec3d& p : surface_source) surface_start.push_back(T * p);
@@ -241,6 +175,53 @@ RefinedClouds refine_places(const AlignmentSession& base, const AlignmentSession
   return refine_clouds(session_cloud_near(base, base_places, radius + 10.0, config.refine_voxel),
                        session_cloud_near(other, other_places, radius, config.refine_voxel, only_other_submap), start,
                        config);
+}
+
+// Every place of the other session outside the survey (not a multiple of `step`), verified once:
+// against the base place nearest (within guided_radius) to where the survey's winner puts it, from
+// that transform (only the fine ICP stages). Its pairs that agree with the winner join the winners;
+// the survey alone was judged for ambiguity.
+void add_guided_pairs(const AlignmentSession& base, const AlignmentSession& other, std::size_t step,
+                      const AlignmentConfig& config, SessionAlignment& result, PairConsensus& consensus) {
+  const Pose T_survey = result.verified[consensus.best].T_base_other;
+  struct Guided {
+    std::size_t base_place, other_place;
+    Pose guess;
+  };
+  std::vector<Guided> guided;
+  for (std::size_t j = 0; j < other.places.size(); ++j) {
+    if (j % step == 0) continue;
+    const Pose T_base_oplace = T_survey * other.T_world_place(j);
+    std::optional<std::size_t> nearest;
+    double nearest_distance = config.guided_radius;
+    for (std::size_t i = 0; i < base.places.size(); ++i) {
+      const double d = (base.T_world_place(i).translation() - T_base_oplace.translation()).head<2>().norm();
+      if (d <= nearest_distance) {
+        nearest = i;
+        nearest_distance = d;
+      }
+    }
+    if (nearest) guided.push_back({*nearest, j, base.T_world_place(*nearest).inverse() * T_base_oplace});
+  }
+  std::vector<VerifiedPair> checked(guided.size());
+  std::vector<std::optional<PairRejection>> rejections(guided.size());
+  tbb::parallel_for(std::size_t{0}, guided.size(), [&](std::size_t g) {
+    rejections[g] = verify_place_pair(base, guided[g].base_place, other, guided[g].other_place, guided[g].guess,
+                                      PairGuess::kTransform, config, checked[g]);
+    if (!rejections[g] && config.prior && !agrees_with_prior(checked[g], *config.prior))
+      rejections[g] = PairRejection::kAgainstPrior;
+  });
+  result.candidate_pairs += guided.size();
+  const VerifiedPair winner = result.verified[consensus.best];
+  for (std::size_t g = 0; g < guided.size(); ++g) {
+    if (rejections[g]) {
+      ++result.rejections[static_cast<std::size_t>(*rejections[g])];
+      continue;
+    }
+    ++result.guided_pairs;
+    if (verified_pairs_agree(winner, checked[g], config.consensus)) consensus.winners.push_back(result.verified.size());
+    result.verified.push_back(checked[g]);
+  }
 }
 
 }  // namespace
@@ -289,38 +270,68 @@ SessionAlignment align_sessions(const std::vector<SessionSubmap>& base_submaps,
     for (std::size_t k = 0; k < found.size() && k < config.candidates_per_place; ++k)
       candidates.push_back({found[k].index, j, yaw_pose(found[k].match.yaw), found[k].match.distance});
   }
+  // Verified from their descriptors' candidates: every place's, or on a map with many places a
+  // survey's, every k-th place (at least survey_places of them; the ICPs from a yaw-only guess are
+  // the alignment's cost). The survey's consensus decides, with its refusals; when it wins, every
+  // other place is verified once, against the base place where the winner puts it and from the
+  // winner's transform (guided). When the survey does not decide, every candidate is verified.
+  const std::size_t step = config.survey_places == 0 || other.places.size() < 2 * config.survey_places
+                               ? 1
+                               : other.places.size() / config.survey_places;
   std::vector<VerifiedPair> checked(candidates.size());
   std::vector<std::optional<PairRejection>> rejections(candidates.size());
-  tbb::parallel_for(std::size_t{0}, candidates.size(), [&](std::size_t c) {
-    const Candidate& candidate = candidates[c];
-    checked[c].descriptor_distance = candidate.descriptor_distance;
-    rejections[c] = verify_session_pair(base, candidate.base_place, other, candidate.other_place, candidate.guess,
-                                        config, checked[c]);
-    if (!rejections[c] && config.prior && !agrees_with_prior(checked[c], *config.prior))
-      rejections[c] = PairRejection::kAgainstPrior;
-  });
-  result.candidate_pairs = candidates.size();
-  for (std::size_t c = 0; c < candidates.size(); ++c) {
-    if (rejections[c])
-      ++result.rejections[static_cast<std::size_t>(*rejections[c])];
-    else
-      result.verified.push_back(checked[c]);
+  std::vector<char> done(candidates.size(), 0);
+  const auto verify_candidates = [&](bool survey_only) {
+    std::vector<std::size_t> todo;
+    for (std::size_t c = 0; c < candidates.size(); ++c)
+      if (!done[c] && (!survey_only || candidates[c].other_place % step == 0)) todo.push_back(c);
+    tbb::parallel_for(std::size_t{0}, todo.size(), [&](std::size_t t) {
+      const std::size_t c = todo[t];
+      const Candidate& candidate = candidates[c];
+      checked[c].descriptor_distance = candidate.descriptor_distance;
+      rejections[c] = verify_place_pair(base, candidate.base_place, other, candidate.other_place, candidate.guess,
+                                        PairGuess::kDescriptor, config, checked[c]);
+      if (!rejections[c] && config.prior && !agrees_with_prior(checked[c], *config.prior))
+        rejections[c] = PairRejection::kAgainstPrior;
+      done[c] = 1;
+    });
+    // The results in the candidates' order, whatever the order of verification.
+    result.verified.clear();
+    result.rejections = {};
+    result.candidate_pairs = 0;
+    for (std::size_t c = 0; c < candidates.size(); ++c) {
+      if (!done[c]) continue;
+      ++result.candidate_pairs;
+      if (rejections[c])
+        ++result.rejections[static_cast<std::size_t>(*rejections[c])];
+      else
+        result.verified.push_back(checked[c]);
+    }
+  };
+  verify_candidates(step > 1);
+  std::vector<VerifiedPair>& pairs = result.verified;
+  PairConsensus consensus;
+  if (!pairs.empty()) consensus = find_pair_consensus(pairs, config.consensus);
+  if (step > 1 && (pairs.empty() || !consensus.refused.empty())) {
+    verify_candidates(false);
+    if (!pairs.empty()) consensus = find_pair_consensus(pairs, config.consensus);
+  } else if (step > 1) {
+    result.surveyed_places = (other.places.size() + step - 1) / step;
   }
-  const std::vector<VerifiedPair>& pairs = result.verified;
   if (pairs.empty()) {
     result.refused = fmt::format(
         "the maps do not overlap: none of {} candidate pairs between {} base and {} other places was verified",
         result.candidate_pairs, result.base_places, result.other_places);
     return result;
   }
-
-  const PairConsensus consensus = find_pair_consensus(pairs, config.consensus);
-  result.consistent = consensus.winners;
   result.rival_pairs = consensus.rival_pairs;
   if (!consensus.refused.empty()) {
+    result.consistent = consensus.winners;
     result.refused = fmt::format("{} (of {} candidate pairs)", consensus.refused, result.candidate_pairs);
     return result;
   }
+  if (result.surveyed_places > 0) add_guided_pairs(base, other, step, config, result, consensus);
+  result.consistent = consensus.winners;
   const std::vector<std::size_t>& winners = consensus.winners;
   const std::size_t best = consensus.best;
   const RefinedClouds refined = refine_places(base, other, pairs, winners, pairs[best].T_base_other, config);

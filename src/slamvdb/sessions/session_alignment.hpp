@@ -35,6 +35,14 @@ struct AlignmentConfig {
   std::size_t ring_key_neighbours = 10;
   double max_descriptor_distance = 0.4;
   std::size_t candidates_per_place = 3;
+  // On maps with at least twice this many places of the other session, the candidates of every
+  // k-th place only (a survey of at least this many places) are verified first; when their
+  // consensus wins (its refusals as without a survey), each other place is verified once, against
+  // the base place nearest (within guided_radius metres) to where the winner puts it, from the
+  // winner's transform (the fine ICP stages only); when it does not, every candidate is verified.
+  // 0: every candidate, always. The verifications from a yaw-only guess are the alignment's cost.
+  std::size_t survey_places = 48;
+  double guided_radius = 10.0;
   // Verification: the other place's voxels at cloud_voxel against the base's at refine_voxel
   // (denser, so that the RMSE of a right alignment stays under max_rmse; two 0.5 m clouds give
   // ~0.2 m whether right or slightly wrong).
@@ -53,6 +61,10 @@ struct AlignmentConfig {
   // Then point-to-plane on the base's surface (surface_refinement.hpp); off only to measure
   // what it corrects.
   bool surface_refinement = true;
+  // Points of the other session each refinement step uses at most (ICP and surface step, each an
+  // unbiased subset): the refinement over a 3 km map's winning places otherwise uses hundreds of
+  // thousands. Per-submap refinements stay under it.
+  std::size_t refine_points = 60000;
   // The refined alignment's overlap (the other session's voxels near the winning places that lie
   // on the base's) must reach this, else refused: pairs of two different terrains can agree (3-5
   // pairs of 100-120 m SIMULATED drives on different seeds did, each pair passing its own tests),
@@ -92,7 +104,9 @@ struct SessionAlignment {
   // radians. Zero with one pair (then the alignment is refused anyway by min_verified_pairs >= 2).
   double sigma_translation = 0.0, sigma_rotation = 0.0;
   std::size_t base_places = 0, other_places = 0;
-  std::size_t candidate_pairs = 0;
+  std::size_t candidate_pairs = 0;         // pairs verified (from descriptors, then guided)
+  std::size_t surveyed_places = 0;         // places whose candidates decided (0: all of them)
+  std::size_t guided_pairs = 0;            // of the verified pairs, those verified guided by the survey's winner
   std::vector<VerifiedPair> verified;      // every verified pair
   std::vector<std::size_t> consistent;     // indices into verified: the winning set
   std::size_t rival_pairs = 0;             // the largest set disjoint from the winner
