@@ -23,6 +23,17 @@ AlignmentSession::AlignmentSession(const std::vector<SessionSubmap>& s, const Al
   places = make_places(clouds, config.places);
 }
 
+namespace {
+
+// The loop closer's consistency test with a prior in place of odometry.
+bool agrees_with_prior(const VerifiedPair& pair, const AlignmentPrior& prior) {
+  const Vec3d& x = pair.other_place_world;
+  return (pair.T_base_other * x - prior.T_base_other * x).norm() <= prior.radius &&
+         Eigen::AngleAxisd((prior.T_base_other.inverse() * pair.T_base_other).linear()).angle() <= prior.max_rotation;
+}
+
+}  // namespace
+
 std::optional<PairRejection> verify_place_pair(const AlignmentSession& base, std::size_t base_place,
                                                const AlignmentSession& other, std::size_t other_place,
                                                const Pose& T_bplace_oplace_guess, PairGuess guess_kind,
@@ -67,6 +78,7 @@ std::optional<PairRejection> verify_place_pair(const AlignmentSession& base, std
   pair.other_submap_id = (*other.submaps)[other.places[other_place].submap].id;
   pair.other_place_world = other.T_world_place(other_place).translation();
   pair.T_base_other = base.T_world_place(base_place) * *aligned * other.T_world_place(other_place).inverse();
+  if (config.prior && !agrees_with_prior(pair, *config.prior)) return PairRejection::kAgainstPrior;
   return std::nullopt;
 }
 

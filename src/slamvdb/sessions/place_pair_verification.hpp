@@ -41,7 +41,7 @@ struct AlignmentSession {
 enum class PairGuess { kDescriptor, kTransform };
 
 // Verifies one candidate pair from `T_bplace_oplace_guess`; fills `pair` and returns nothing when
-// it is accepted, else the first test it failed.
+// it is accepted, else the first test it failed (the last: agreeing with config.prior, if any).
 std::optional<PairRejection> verify_place_pair(const AlignmentSession& base, std::size_t base_place,
                                                const AlignmentSession& other, std::size_t other_place,
                                                const Pose& T_bplace_oplace_guess, PairGuess guess_kind,

@@ -68,13 +68,6 @@ Pose yaw_pose(double yaw) {
 
 double rotation_angle(const Pose& T) { return Eigen::AngleAxisd(T.linear()).angle(); }
 
-// The loop closer's consistency test with a prior in place of odometry.
-bool agrees_with_prior(const VerifiedPair& pair, const AlignmentPrior& prior) {
-  const Vec3d& x = pair.other_place_world;
-  return (pair.T_base_other * x - prior.T_base_other * x).norm() <= prior.radius &&
-         rotation_angle(prior.T_base_other.inverse() * pair.T_base_other) <= prior.max_rotation;
-}
-
 // Every submap's voxels (thinned to `voxel`) within `radius` (horizontally) of any of the places,
 // in the world frame of the session. All submaps, not only the places' own: a place's
 // surroundings cut at its submap's edge would pull the other session's points inwards. With
@@ -208,8 +201,6 @@ void add_guided_pairs(const AlignmentSession& base, const AlignmentSession& othe
   tbb::parallel_for(std::size_t{0}, guided.size(), [&](std::size_t g) {
     rejections[g] = verify_place_pair(base, guided[g].base_place, other, guided[g].other_place, guided[g].guess,
                                       PairGuess::kTransform, config, checked[g]);
-    if (!rejections[g] && config.prior && !agrees_with_prior(checked[g], *config.prior))
-      rejections[g] = PairRejection::kAgainstPrior;
   });
   result.candidate_pairs += guided.size();
   const VerifiedPair winner = result.verified[consensus.best];
@@ -291,8 +282,6 @@ SessionAlignment align_sessions(const std::vector<SessionSubmap>& base_submaps,
       checked[c].descriptor_distance = candidate.descriptor_distance;
       rejections[c] = verify_place_pair(base, candidate.base_place, other, candidate.other_place, candidate.guess,
                                         PairGuess::kDescriptor, config, checked[c]);
-      if (!rejections[c] && config.prior && !agrees_with_prior(checked[c], *config.prior))
-        rejections[c] = PairRejection::kAgainstPrior;
       done[c] = 1;
     });
     // The results in the candidates' order, whatever the order of verification.
