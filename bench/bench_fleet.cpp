@@ -7,6 +7,7 @@
 // whole region pulled and searched. Figures: docs/fleet-design.md, "Measurements".
 #include <benchmark/benchmark.h>
 
+#include "bench_fleet_common.hpp"
 #include "slamvdb/fleet/fleet_search.hpp"
 #include "slamvdb/testing/postgres_server.hpp"
 
@@ -82,28 +83,17 @@ void BM_FleetPush(benchmark::State& state) {
   state.counters["payload_MB"] = static_cast<double>(report.payload_bytes) / 1e6;
 }
 
-// The reference: the same rows in COPY's text form (hex bytea, as push streams them) loaded by
-// psql's \copy over the same socket into tables like the fleet's (primary keys, STORAGE EXTERNAL;
-// no catalog rows, no foreign keys, no encoding, no CRC).
+// The reference: the same rows loaded by plain COPY (bench_fleet_common.hpp).
 void BM_FleetCopyReference(benchmark::State& state) {
   FleetBenchDatabase& db = fleet_bench_database();
-  const std::filesystem::path dir = db.server.data().parent_path();  // the server's own, writable by it
-  const std::string occupancy = (dir / "occupancy.copy").string(), semantics = (dir / "semantics.copy").string();
   db.psql("TRUNCATE slamvdb.sessions CASCADE");
   fleet::FleetDatabase(db.url).push_map(fleet_bench_map(), {.session = "bench"});
-  db.psql("COPY slamvdb.occupancy TO '" + occupancy + "'; COPY slamvdb.semantics TO '" + semantics + "'");
-  db.psql("DROP TABLE IF EXISTS ref_occupancy, ref_semantics; "
-          "CREATE TABLE ref_occupancy (LIKE slamvdb.occupancy INCLUDING ALL); "
-          "CREATE TABLE ref_semantics (LIKE slamvdb.semantics INCLUDING ALL)");
-  const std::string copy = std::string(testing::PostgresServer::kBinDir) + "/psql -X -q -v ON_ERROR_STOP=1 -d " +
-                           testing::shell_quote(db.url) + " -c " +
-                           testing::shell_quote("\\copy ref_occupancy FROM '" + occupancy + "'") + " -c " +
-                           testing::shell_quote("\\copy ref_semantics FROM '" + semantics + "'");
+  const FleetCopyReference reference(db.server, "bench_fleet");
   for (auto _ : state) {
     state.PauseTiming();
-    db.psql("TRUNCATE ref_occupancy, ref_semantics");
+    reference.truncate();
     state.ResumeTiming();
-    const testing::CommandResult r = testing::run_command(copy, 120);
+    const testing::CommandResult r = reference.load();
     if (r.exit_code != 0) state.SkipWithError(r.output.c_str());
   }
   state.SetBytesProcessed(static_cast<int64_t>(state.iterations() * db.pushed.payload_bytes));

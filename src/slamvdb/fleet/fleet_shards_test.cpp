@@ -5,9 +5,6 @@
 #include <gtest/gtest.h>
 
 #include <chrono>
-#include <fstream>
-#include <memory>
-#include <thread>
 
 #include "slamvdb/core/error.hpp"
 #include "slamvdb/fleet/fleet_database.hpp"
@@ -15,6 +12,7 @@
 #include "slamvdb/testing/fleet_fixtures.hpp"
 #include "slamvdb/testing/map_store_fixtures.hpp"
 #include "slamvdb/testing/postgres_server.hpp"
+#include "slamvdb/testing/postgres_shards.hpp"
 #include "slamvdb/testing/run_command.hpp"
 #include "slamvdb/testing/temp_dir.hpp"
 
@@ -23,47 +21,18 @@ namespace {
 
 using slamvdb::testing::PostgresServer;
 using slamvdb::testing::psql_value;
+using slamvdb::testing::statements_in;
 
 // Two shard servers for the suite, each logging every statement with its database's name.
-struct ShardServers {
-  std::filesystem::path dirs[2];
-  std::unique_ptr<PostgresServer> servers[2];
-  ShardServers() {
-    slamvdb::testing::shared_postgres_server();  // first: it sweeps the directories of dead runs
-    for (int i = 0; i < 2; ++i) {
-      dirs[i] = std::filesystem::temp_directory_path() /
-                ("slamvdb-postgres-" + std::to_string(::getpid()) + "-shard" + std::to_string(i));
-      std::filesystem::remove_all(dirs[i]);
-      std::filesystem::create_directories(dirs[i]);
-      servers[i] = std::make_unique<PostgresServer>(dirs[i]);
-      servers[i]->psql("ALTER SYSTEM SET log_statement = 'all'");
-      servers[i]->psql("ALTER SYSTEM SET log_line_prefix = '%m [%p] %d '");
-      servers[i]->psql("SELECT pg_reload_conf()");
-      for (int tries = 0; tries < 100 && servers[i]->psql("SHOW log_statement") != "all\n"; ++tries)
-        std::this_thread::sleep_for(std::chrono::milliseconds(50));
-    }
-  }
-  ~ShardServers() {
-    for (int i = 0; i < 2; ++i) {
-      servers[i].reset();
-      std::error_code ignored;
-      std::filesystem::remove_all(dirs[i], ignored);
-    }
+struct ShardServers : slamvdb::testing::PostgresServerSet {
+  ShardServers() : PostgresServerSet(2, "shard") {
+    for (int i = 0; i < 2; ++i) slamvdb::testing::log_statements((*this)[i], true);
   }
 };
 
 PostgresServer& shard_server(int i) {
   static ShardServers servers;
-  return *servers.servers[i];
-}
-
-// How many statements the server has logged in `database` (log_statement = all).
-std::size_t statements_in(const PostgresServer& server, const std::string& database) {
-  std::ifstream log(server.log_file());
-  std::size_t n = 0;
-  const std::string mark = "] " + database + " LOG:  ";
-  for (std::string line; std::getline(log, line);) n += line.find(mark) != std::string::npos;
-  return n;
+  return servers[i];
 }
 
 class FleetShards : public ::testing::Test {
