@@ -192,6 +192,7 @@ void BM_FleetScalePush(benchmark::State& state) {
 void BM_FleetScaleCopyReference(benchmark::State& state) {
   const ScaleFleet& f = scale_fleet(static_cast<int>(state.range(0)));
   const FleetCopyReference references[2] = {{scale_shard_servers()[0], f.shard_db}, {scale_shard_servers()[1], f.shard_db}};
+  double total = 0;
   for (auto _ : state) {
     double seconds = 0;
     for (const FleetCopyReference& reference : references) {
@@ -202,9 +203,12 @@ void BM_FleetScaleCopyReference(benchmark::State& state) {
       if (r.exit_code != 0) state.SkipWithError(r.output.c_str());
     }
     state.SetIterationTime(seconds);
+    total += seconds;
   }
-  state.SetBytesProcessed(static_cast<int64_t>(state.iterations() * f.pushed.payload_bytes));
-  state.SetItemsProcessed(static_cast<int64_t>(state.iterations()) * f.pushed.submaps_added);
+  // As the push's counters (MB of 10^6 bytes; Google Benchmark's bytes_per_second counts MiB).
+  const double loads = static_cast<double>(state.iterations());
+  state.counters["MB_per_s"] = loads * static_cast<double>(f.pushed.payload_bytes) / 1e6 / total;
+  state.counters["submaps_per_s"] = loads * f.pushed.submaps_added / total;
 }
 
 // kB of the process from /proc/self/status ("VmRSS", "VmHWM").
@@ -299,6 +303,11 @@ void BM_FleetScaleRegionQuery(benchmark::State& state) {
     state.counters["shard_b_statements_" + n] = statements(1, fleet) - before[1][fleet];
   }
   for (int i = 0; i < 2; ++i) testing::log_statements(scale_shard_servers()[i], false);
+  // What makes the comparison hold: the same region map in both fleets, asked of shard a only.
+  if (in_region[0] != in_region[1] || in_region[0] == 0) state.SkipWithError("the region differs between the fleets");
+  if (state.counters["shard_b_statements_" + std::to_string(fleets[0]->sessions)] > 0 ||
+      state.counters["shard_b_statements_" + std::to_string(fleets[1]->sessions)] > 0)
+    state.SkipWithError("the region, all on shard a, asked shard b");
   state.counters["p50_ratio"] = percentile(latencies[1], 0.5) / percentile(latencies[0], 0.5);
   state.counters["p99_ratio"] = percentile(latencies[1], 0.99) / percentile(latencies[0], 0.99);
   for (int fleet = 0; fleet < 2; ++fleet)
