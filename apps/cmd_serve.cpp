@@ -204,6 +204,11 @@ void add(CLI::App& root) {
                   "Requests answered at once; more get 503 + Retry-After at once (/healthz and /metrics always answer)")
       ->capture_default_str()
       ->check(integer_range(1, 4096));
+  cmd->add_option("--compute-slots", opt->limits.compute_slots,
+                  "POST /api/query answers computed at once; the other admitted requests wait in arrival order; "
+                  "0: the machine's hardware threads")
+      ->capture_default_str()
+      ->check(integer_range(0, 4096));
   cmd->add_option("--rate-limit", opt->limits.rate_per_client,
                   "Requests per second per client address; more get 429 + Retry-After (/healthz and /metrics are not "
                   "counted); 0: no limit")

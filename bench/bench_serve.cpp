@@ -152,13 +152,16 @@ void BM_ServeAtStages(benchmark::State& state) {
 BENCHMARK(BM_ServeAtStages)->DenseRange(0, 2)->Unit(benchmark::kMillisecond)->MeasureProcessCPUTime();
 
 // Args: clients, requests per client, route (0: POST /api/query top 100, distinct vectors, through
-// the ANN index; 1: POST /api/at with 10 000 points; 2: as 0 with "exact": true). One iteration: the whole load, bounded in count.
+// the ANN index; 1: POST /api/at with 10 000 points; 2: as 0 with "exact": true), queries computed
+// at once (--compute-slots: 0 the default, one per hardware thread; = clients: no waiting, every
+// admitted answer computes at once, as before s40). One iteration: the whole load, bounded in count.
 void BM_ServeLoad(benchmark::State& state) {
   const int clients = static_cast<int>(state.range(0)), per_client = static_cast<int>(state.range(1));
   const bool at = state.range(2) == 1, exact = state.range(2) == 2;
   ServerOptions options;
   options.port = 0;
   options.limits.max_concurrent = static_cast<std::size_t>(clients);
+  options.limits.compute_slots = static_cast<std::size_t>(state.range(3));
   options.limits.max_body_bytes = 16 << 20;
   options.limits.rate_per_client = 0;  // every client is 127.0.0.1 here
   options.model_check = ModelIdCheck::kIgnore;
@@ -218,11 +221,13 @@ void BM_ServeLoad(benchmark::State& state) {
   if (at) state.counters["points_per_s"] = 10000.0 * static_cast<double>(latencies_ms.size()) / seconds;
 }
 BENCHMARK(BM_ServeLoad)
-    ->Args({1, 16, 0})
-    ->Args({32, 4, 0})
-    ->Args({32, 16, 0})
-    ->Args({32, 4, 2})
-    ->Args({8, 4, 1})
+    ->Args({1, 16, 0, 0})
+    ->Args({32, 4, 0, 0})
+    ->Args({32, 16, 0, 0})
+    ->Args({32, 4, 0, 32})
+    ->Args({32, 16, 0, 32})
+    ->Args({32, 4, 2, 0})
+    ->Args({8, 4, 1, 0})
     ->Iterations(1)
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime();

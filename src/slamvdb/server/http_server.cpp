@@ -17,6 +17,7 @@
 
 #include "slamvdb/core/deadline.hpp"
 #include "slamvdb/server/client_rate_limit.hpp"
+#include "slamvdb/server/compute_gate.hpp"
 #include "slamvdb/server/httplib_include.hpp"
 #include "slamvdb/server/nav_grid_answer.hpp"
 #include "slamvdb/server/points_answer.hpp"
@@ -137,6 +138,7 @@ struct MapServer::Impl {
   std::atomic<bool> stopping{false}, running{false};  // see MapServer::stop
   std::unique_ptr<MapEventStreams> events;  // GET /api/events (web_events.hpp)
   std::unique_ptr<ClientRateLimit> rate;  // per client address; null: no rate limit
+  std::unique_ptr<ComputeGate> compute;  // POST /api/query's answers computing at once
 
   void add_routes();
   std::string metrics_text() const;
@@ -162,6 +164,13 @@ std::string MapServer::Impl::metrics_text() const {
   } else {
     gauges["slamvdb_map_submaps_in_memory"] = {0.0, "Submaps held in memory (a fleet map: read per request)."};
   }
+  if (compute) {
+    gauges["slamvdb_query_compute_slots"] = {static_cast<double>(compute->slots()),
+                                             "POST /api/query answers computed at once (the rest wait in arrival order)."};
+    gauges["slamvdb_query_computing"] = {static_cast<double>(compute->computing()), "POST /api/query answers computing now."};
+    gauges["slamvdb_query_waiting"] = {static_cast<double>(compute->waiting()),
+                                       "POST /api/query answers waiting for a compute slot now."};
+  }
   if (text) {
     const auto c = text->counts();
     gauges["slamvdb_text_cache_hits"] = {static_cast<double>(c.hits), "Text embeddings answered from the cache."};
@@ -178,6 +187,7 @@ void MapServer::Impl::add_routes() {
   events = std::make_unique<MapEventStreams>(*map, stopping);
   if (options.limits.rate_per_client > 0)
     rate = std::make_unique<ClientRateLimit>(options.limits.rate_per_client, options.limits.rate_burst);
+  compute = std::make_unique<ComputeGate>(options.limits.compute_slots);
   // Every route with its one method; the other methods on a known path answer 405 (httplib alone
   // would say 404, which tells a client the path is wrong when the method is).
   struct Route {
@@ -251,6 +261,7 @@ void MapServer::Impl::add_routes() {
        [this](const httplib::Request& req, httplib::Response& res) {
          QueryRequest request = decode_query_request(req.body, map->space().dim, options.limits);
          request.search.deadline = Deadline::after(options.limits.time_budget);
+         const ComputeGate::Pass computing = compute->enter(request.search.deadline);
          send_json(res, 200, answer_query(context, request));
        }},
   };

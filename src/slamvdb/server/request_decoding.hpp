@@ -27,6 +27,10 @@ struct ServerLimits {
   // Requests answered at once; more are refused with 503 + Retry-After at once rather than queued
   // without bound (/healthz and /metrics are never refused, so monitoring sees a busy server).
   std::size_t max_concurrent = 32;
+  // Answers of POST /api/query computed at once; the other admitted ones wait in arrival order
+  // (server/compute_gate.hpp: fewer answers sharing the cores and caches, no unfair tail).
+  // 0: the machine's hardware threads.
+  std::size_t compute_slots = 0;
   // Cells one GET /api/classes answers (about 120 bytes of JSON each: 200 000 is ~25 MB); a region
   // holding more is refused with 413 naming the count and this limit (split the region instead).
   std::size_t max_cells = 200000;

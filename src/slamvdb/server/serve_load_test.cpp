@@ -1,7 +1,8 @@
 // A bounded load on a served map: many client threads over loopback, a fixed count of requests
 // each, mixing the routes (query by class, at, classes, nav-grid), more clients than
-// --max-concurrent. Every answer is a 200 or the documented 503 (with Retry-After), never another
-// status or a dropped connection; the server answers /healthz afterwards and stops cleanly.
+// --max-concurrent (queries computed one at a time: --compute-slots 1). Every answer is a 200 or
+// the documented 503 (with Retry-After), never another status or a dropped connection; the server
+// answers /healthz afterwards, shows no query slot held, and stops cleanly.
 // Latency p50/p99 is printed (bench/bench_serve.cpp measures it on a million cells). No connection
 // overflowed the listen backlog (the kernel's count; such a client waits 1 s for its SYN's resend).
 #include <fmt/format.h>
@@ -41,7 +42,7 @@ TEST(ServeLoad, ManyClientsGetAnswersOr503AndNothingElse) {
   testing::TwoClassMap f;
   testing::ServerProcess server(SLAMVDB_CLI_PATH,
                                 {"serve", f.map.string(), "--port", "0", "--queries", f.queries.string(),
-                                 "--ignore-model-id", "--max-concurrent", "4"},
+                                 "--ignore-model-id", "--max-concurrent", "4", "--compute-slots", "1"},
                                 (f.tmp.path / "serve.log").string());
   ASSERT_GT(server.port(), 0) << server.output();
   constexpr int kClients = 16, kRequests = 12;
@@ -93,6 +94,13 @@ TEST(ServeLoad, ManyClientsGetAnswersOr503AndNothingElse) {
   const auto health = client.Get("/healthz");
   ASSERT_TRUE(health);
   EXPECT_EQ(health->status, 200);
+  // --compute-slots reached the server, and every query's slot was given back (none computing or
+  // waiting once the clients are done).
+  const auto metrics = client.Get("/metrics");
+  ASSERT_TRUE(metrics);
+  EXPECT_NE(metrics->body.find("\nslamvdb_query_compute_slots 1\n"), std::string::npos) << metrics->body;
+  EXPECT_NE(metrics->body.find("\nslamvdb_query_computing 0\n"), std::string::npos) << metrics->body;
+  EXPECT_NE(metrics->body.find("\nslamvdb_query_waiting 0\n"), std::string::npos) << metrics->body;
   EXPECT_EQ(server.stop(SIGTERM), 0);
 }
 
