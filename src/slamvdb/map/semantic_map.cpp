@@ -230,6 +230,24 @@ std::pair<SubmapInfo, VoxelMap> SemanticMap::remove_finished_submap(int id) {
   return out;
 }
 
+std::vector<std::pair<SubmapInfo, VoxelMap>> SemanticMap::take_finished_submaps() {
+  WriteLock lock(mutex_);
+  std::vector<std::pair<SubmapInfo, VoxelMap>> out;
+  if (!active_slot_) index_ = GlobalIndex(params_.index_cell(), params_.semantic.dim, params_.semantic.single_view);
+  for (auto it = ids_.begin(); it != ids_.end();) {
+    const uint32_t slot = it->second;
+    if (!slots_[slot]->finished()) {
+      ++it;
+      continue;
+    }
+    if (active_slot_) index_.remove_submap(slot);
+    out.emplace_back(slots_[slot]->info_, std::move(slots_[slot]->voxels_));
+    slots_[slot].reset();
+    it = ids_.erase(it);
+  }
+  return out;
+}
+
 std::vector<SubmapInfo> SemanticMap::submaps() const {
   ReadLock lock(mutex_);
   std::vector<SubmapInfo> out;

@@ -190,6 +190,40 @@ TEST(SemanticMap, MovingASubmapMovesExactlyItsVoxelsInIndexReads) {
   EXPECT_THROW(map.set_submap_poses({{1, scaled}}), Error);  // not rigid
 }
 
+// take_finished_submaps: every finished submap leaves in id order with its voxels, the index keeps
+// only the active submap's entries (entry by entry then), or empties at once when none is active.
+TEST(SemanticMap, TakingEveryFinishedSubmapLeavesOnlyTheActiveOneIndexed) {
+  const auto world = world_points();
+  SemanticMap map(small_params(10.0));
+  const std::vector<float> value{1, 0, 0, 0, 0, 0, 0, 0};
+  for (int i = 0; i < 25; ++i) {
+    map.integrate_scan(i, scan_of(world, sensor_at(i)), sensor_at(i));
+    observe_all(map, i, value);
+  }
+  ASSERT_EQ(map.num_submaps(), 3u);  // two finished, one active
+  std::map<int, std::size_t> sizes;
+  for (const SubmapInfo& s : map.submaps())
+    map.read_submap(s.id, [&](const Submap& sub) { sizes[s.id] = sub.voxels().semantics().size(); });
+  auto taken = map.take_finished_submaps();
+  ASSERT_EQ(taken.size(), 2u);
+  for (std::size_t i = 0; i < taken.size(); ++i) {
+    EXPECT_EQ(taken[i].first.id, static_cast<int>(i));
+    EXPECT_EQ(taken[i].second.semantics().size(), sizes.at(static_cast<int>(i)));
+  }
+  ASSERT_EQ(map.num_submaps(), 1u);
+  EXPECT_EQ(total_entries(map), sizes.at(2));  // the active submap's entries only
+  map.finish_active_submap();
+  taken = map.take_finished_submaps();
+  ASSERT_EQ(taken.size(), 1u);
+  EXPECT_EQ(map.num_submaps(), 0u);
+  EXPECT_EQ(total_entries(map), 0u);
+  EXPECT_EQ(map.num_index_cells(), 0u);
+  // What left can join another map whole.
+  SemanticMap other(small_params(10.0));
+  other.add_finished_submap(taken[0].first, std::move(taken[0].second));
+  EXPECT_EQ(total_entries(other), sizes.at(2));
+}
+
 TEST(SemanticMap, AVoxelClearedByALaterScanLeavesTheIndex) {
   MapParams p = small_params(0.0);
   p.occupancy.min_point_range = 0.0;

@@ -71,19 +71,22 @@ SemanticMap merge_session_maps(std::vector<SemanticMap>& inputs, const std::vect
       s.id = static_cast<int>(info.sessions.size());
       info.sessions.push_back(std::move(s));
     }
-    for (const SubmapInfo& s : inputs[i].submaps())  // checked before any submap moves
+    for (const SubmapInfo& s : inputs[i].submaps()) {  // checked before any submap moves
+      if (!s.finished)
+        throw Error(fmt::format("cannot merge {}: its submap {} is still being written", labels[i], s.id));
       if (new_session_ids[i].count(s.session) == 0)
         throw Error(fmt::format("cannot merge {}: its submap {} belongs to session {}, which it does not list",
                                 labels[i], s.id, s.session));
+    }
   }
   std::vector<std::pair<SubmapInfo, VoxelMap>> submaps;  // new ids: input order, then the input's id order
   for (std::size_t i = 0; i < inputs.size(); ++i)
-    for (const SubmapInfo& s : inputs[i].submaps()) {
-      submaps.push_back(inputs[i].remove_finished_submap(s.id));
-      submaps.back().first.id = static_cast<int>(submaps.size()) - 1;
-      submaps.back().first.session = new_session_ids[i].at(s.session);
+    for (auto& [submap, voxels] : inputs[i].take_finished_submaps()) {  // by id
+      submap.id = static_cast<int>(submaps.size());
+      submap.session = new_session_ids[i].at(submap.session);
       // Its voxels' last-observed sessions follow (an input listing no session tags them 0).
-      submaps.back().second.semantics().renumber_sessions(new_session_ids[i]);
+      voxels.semantics().renumber_sessions(new_session_ids[i]);
+      submaps.emplace_back(std::move(submap), std::move(voxels));
     }
   // Which drive is newer comes from the sessions' time ranges: the union of their submaps' (as a
   // saved file has them), also for maps that were never saved; a session without submaps keeps its own.

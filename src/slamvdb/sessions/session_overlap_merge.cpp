@@ -1,6 +1,7 @@
 #include "slamvdb/sessions/session_overlap_merge.hpp"
 
 #include <Eigen/Geometry>
+#include <tbb/parallel_for.h>
 
 #include "slamvdb/map/submap_merge.hpp"
 
@@ -32,20 +33,29 @@ std::vector<SubmapAbsorption> merge_overlapping_sessions(std::vector<std::pair<S
                                                          const SessionOrder& sessions) {
   std::vector<SubmapAbsorption> out;
   if (!options.enabled) return out;
-  std::vector<Eigen::AlignedBox3d> boxes;
-  for (const auto& [info, voxels] : submaps) boxes.push_back(overlap_merge_world_box(info, voxels));
+  std::vector<Eigen::AlignedBox3d> boxes(submaps.size());
+  tbb::parallel_for(std::size_t{0}, submaps.size(),
+                    [&](std::size_t i) { boxes[i] = overlap_merge_world_box(submaps[i].first, submaps[i].second); });
   std::vector<bool> absorbed(submaps.size(), false);
   for (std::size_t s = 0; s < submaps.size(); ++s) {
     const auto& [source_info, source] = submaps[s];
-    std::size_t best = s;
-    double best_overlap = -1;
+    std::vector<std::size_t> candidates;
     for (std::size_t t = 0; t < s; ++t) {
       const SubmapInfo& target_info = submaps[t].first;
-      if (absorbed[t] || target_info.session == source_info.session || !boxes[t].intersects(boxes[s])) continue;
-      const Pose T_target_source = target_info.T_world_submap.inverse() * source_info.T_world_submap;
-      const double overlap = occupied_overlap(submaps[t].second, source, T_target_source);
-      if (overlap >= options.min_overlap && overlap > best_overlap) best = t, best_overlap = overlap;
+      if (!absorbed[t] && target_info.session != source_info.session && boxes[t].intersects(boxes[s]))
+        candidates.push_back(t);
     }
+    // The candidates' overlaps are independent reads (a third of a 3 km merge): in parallel, the
+    // choice then made in candidate order as before, so the result does not depend on the threads.
+    std::vector<double> overlaps(candidates.size());
+    tbb::parallel_for(std::size_t{0}, candidates.size(), [&](std::size_t c) {
+      const auto& [target_info, target] = submaps[candidates[c]];
+      overlaps[c] = occupied_overlap(target, source, target_info.T_world_submap.inverse() * source_info.T_world_submap);
+    });
+    std::size_t best = s;
+    double best_overlap = -1;
+    for (std::size_t c = 0; c < candidates.size(); ++c)
+      if (overlaps[c] >= options.min_overlap && overlaps[c] > best_overlap) best = candidates[c], best_overlap = overlaps[c];
     if (best == s) continue;
     auto& [target_info, target] = submaps[best];
     SubmapAbsorption a{.target_id = target_info.id,
