@@ -215,8 +215,8 @@ SessionAlignment align_sessions(const std::vector<SessionSubmap>& base_submaps,
   result.consistent = consensus.winners;
   const std::vector<std::size_t>& winners = consensus.winners;
   const std::size_t best = consensus.best;
-  // The base's side of every refinement, built once (session_refinement.hpp): the whole's ICP
-  // first, then the base's surface planes near the other session's points where it puts them.
+  // The whole's ICP first, then the base's surface planes near the other session's points where
+  // it puts them, fitted once for every refinement (session_refinement.hpp).
   std::set<std::size_t> base_places, other_places;
   winning_places(other, pairs, winners, std::nullopt, base_places, other_places);
   RefinementBase refinement_base(base, base_places, config);
@@ -253,10 +253,12 @@ SessionAlignment align_sessions(const std::vector<SessionSubmap>& base_submaps,
   const std::vector<std::pair<std::size_t, std::size_t>> refined_submaps(pairs_in_submap.begin(), pairs_in_submap.end());
   std::vector<RefinedClouds> submap_results(refined_submaps.size());
   tbb::parallel_for(std::size_t{0}, refined_submaps.size(), [&](std::size_t k) {
-    std::set<std::size_t> unused, submap_places;
-    winning_places(other, pairs, winners, refined_submaps[k].first, unused, submap_places);
+    std::set<std::size_t> submap_base_places, submap_places;
+    winning_places(other, pairs, winners, refined_submaps[k].first, submap_base_places, submap_places);
+    RefinementBase own(base, submap_base_places, config);
+    own.use_planes_of(refinement_base);
     submap_results[k] =
-        refinement_base.refine(refinement_source(other, submap_places, config, refined_submaps[k].first), result.T_base_other,
+        own.refine(refinement_source(other, submap_places, config, refined_submaps[k].first), result.T_base_other,
                                /*from_refined=*/true);
   });
   for (std::size_t k = 0; k < refined_submaps.size(); ++k) {

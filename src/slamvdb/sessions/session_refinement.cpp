@@ -82,7 +82,7 @@ void RefinementBase::add_planes_near(const RefinementSource& source, const Pose&
   std::vector<Vec3d> near;
   near.reserve(source.points.size());
   for (const Vec3d& p : source.points) near.push_back(T_base_other * p);
-  planes_.emplace(points_, near, surface_config(*config_), 2.0 * config_->places.cloud_voxel);
+  planes_ = std::make_shared<const SurfacePlanes>(points_, near, surface_config(*config_), 2.0 * config_->places.cloud_voxel);
 }
 
 Pose RefinementBase::icp(const RefinementSource& source, const Pose& start, bool from_refined) const {

@@ -4,12 +4,14 @@
 // then point-to-plane on the base's surface), and again over each other submap's places alone.
 // Internal to the alignment; its own file to keep that one readable.
 //
-// Why a shared base: every refinement reads the same base voxels (a per-submap one reads those
-// near its base places, about three submaps' worth, all of which lie near the winning places),
-// and building their hash and surface planes was most of aligning two 3 km maps when each of
-// the 61 refinements built its own (bench_sessions.cpp). So the base side is built once, over
-// the base's voxels near every winning place, and read by all the refinements concurrently.
+// Why shared planes: every refinement reads the base's surface planes near its points, and
+// fitting them was a large part of aligning two 3 km maps when each of the 61 refinements fitted
+// its own (bench_sessions.cpp). So the planes are fitted once (in parallel), near all the other
+// session's points, and read by every refinement concurrently. The ICP target stays each
+// refinement's own: a per-submap ICP against the whole map's one hash of 3.2 million points took
+// more CPU than building its own small one (measured, s40).
 #include <cstddef>
+#include <memory>
 #include <optional>
 #include <set>
 #include <vector>
@@ -60,13 +62,15 @@ class RefinementBase {
   RefinedClouds refine(const RefinementSource& source, const Pose& start, bool from_refined = false) const {
     return finish(source, icp(source, start, from_refined));
   }
+  // Reads `shared`'s planes (fitted once, near every point of the other session) instead of its own.
+  void use_planes_of(const RefinementBase& shared) { planes_ = shared.planes_; }
   std::size_t points() const { return points_.size(); }
 
  private:
   const AlignmentConfig* config_;
   std::vector<Vec3d> points_;  // base world frame
   localization::VoxelHashMap target_;
-  std::optional<SurfacePlanes> planes_;
+  std::shared_ptr<const SurfacePlanes> planes_;
 };
 
 // The places of the winning pairs (`only_other_submap`: of those whose other place lies in that

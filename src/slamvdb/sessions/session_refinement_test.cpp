@@ -1,6 +1,6 @@
-// The alignment's refinements read one base built once (session_refinement.hpp) and run in
+// The alignment's refinements read surface planes fitted once (session_refinement.hpp) and run in
 // parallel: on a SIMULATED map, each submap's refinement (two threads) must equal the one made on
-// a base of its own places alone (one thread).
+// a base of its own places alone, planes included (one thread).
 #include <gtest/gtest.h>
 #include <tbb/global_control.h>
 
@@ -29,7 +29,7 @@ AlignmentConfig refinement_test_config() {
   return config;
 }
 
-TEST(SessionRefinement, SharedBaseRefinesEachSubmapAsItsOwnBaseWould) {
+TEST(SessionRefinement, SharedPlanesRefineEachSubmapAsItsOwnBaseWould) {
   const slamvdb::testing::AlignTestWorld world = make_align_world(7, 100);
   const std::vector<SessionSubmap> base = make_align_session(world, Pose::Identity(), 0, 100);
   const std::vector<SessionSubmap> other =
@@ -44,7 +44,7 @@ TEST(SessionRefinement, SharedBaseRefinesEachSubmapAsItsOwnBaseWould) {
   ASSERT_FALSE(two.submap_refinements.empty());
 
   // Each submap's refinement on a base of its own winning places (the voxels and planes it
-  // reads), from the whole's result, on one thread: the shared base read by refinements in
+  // reads), from the whole's result, on one thread: the shared planes read by refinements in
   // parallel must give the same transform.
   const tbb::global_control one_thread(tbb::global_control::max_allowed_parallelism, 1);
   const AlignmentSession base_session(base, config), other_session(other, config);
