@@ -12,16 +12,10 @@
 #include <utility>
 
 #include "slamvdb/core/error.hpp"
-#include "slamvdb/localization/preprocessing.hpp"
-#include "slamvdb/localization/registration.hpp"
-#include "slamvdb/localization/voxel_hash_map.hpp"
 #include "slamvdb/sessions/place_pair_verification.hpp"
-#include "slamvdb/sessions/points_near_places.hpp"
-#include "slamvdb/sessions/surface_refinement.hpp"
+#include "slamvdb/sessions/session_refinement.hpp"
 
 namespace slamvdb::sessions {
-
-using localization::VoxelHashMap;
 
 void AlignmentConfig::validate() const {
   const auto require = [](bool ok, const std::string& what) {
@@ -67,108 +61,6 @@ Pose yaw_pose(double yaw) {
 }
 
 double rotation_angle(const Pose& T) { return Eigen::AngleAxisd(T.linear()).angle(); }
-
-// Every submap's voxels (thinned to `voxel`) within `radius` (horizontally) of any of the places,
-// in the world frame of the session. All submaps, not only the places' own: a place's
-// surroundings cut at its submap's edge would pull the other session's points inwards. With
-// `only_submap` (an index), that submap's voxels alone.
-std::vector<Vec3d> session_cloud_near(const AlignmentSession& session, const std::set<std::size_t>& places,
-                                      double radius, double voxel, std::optional<std::size_t> only_submap = {}) {
-  std::vector<Eigen::Vector2d> centres;
-  for (const std::size_t p : places) centres.push_back(session.T_world_place(p).translation().head<2>());
-  return localization::voxel_downsample(
-      session.dense_clouds.world_points_near(session.T_world_submaps, centres, radius, only_submap), voxel);
-}
-
-// Every `keep_one_in`-th point on average, chosen by a hash of its index: a subset with no
-// geometric pattern. Thinning by keeping the first point of each coarser voxel picks, from
-// voxels stored in key order, the same corner of every coarse cell, and that biased the
-// refinement by 0.035 m along the drive (on sloped ground the kept voxels sit on one side).
-std::vector<Vec3d> unbiased_subset(const std::vector<Vec3d>& points, uint64_t keep_one_in) {
-  std::vector<Vec3d> out;
-  out.reserve(points.size() / keep_one_in + 1);
-  for (std::size_t i = 0; i < points.size(); ++i) {
-    uint64_t z = (static_cast<uint64_t>(i) + 1) * 0x9E3779B97F4A7C15ULL;  // splitmix64's finaliser
-    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ULL;
-    z = (z ^ (z >> 27)) * 0x94D049BB133111EBULL;
-    if ((z ^ (z >> 31)) % keep_one_in == 0) out.push_back(points[i]);
-  }
-  return out;
-}
-
-struct RefinedClouds {
-  Pose T_base_other = Pose::Identity();
-  double overlap = 0.0, rmse = 0.0;
-};
-
-// ICP of the other session's points onto the base's (both world frames) at the refinement
-// resolution, from 2 cloud voxels down to one refinement voxel, then the surface step.
-RefinedClouds refine_clouds(const std::vector<Vec3d>& base_points, const std::vector<Vec3d>& other_points,
-                            const Pose& start, const AlignmentConfig& config) {
-  const double voxel = config.refine_voxel;
-  VoxelHashMap target(voxel, 1e9, 20);
-  target.add_points(base_points);
-  // The source at twice the cloud voxel: the dense target gives each of its points a near
-  // neighbour, and every point costs 27 hash look-ups per iteration (the refinement was half
-  // the alignment's time with the source at the cloud voxel, for no gain in accuracy).
-  // At most refine_points of them (an unbiased subset): a rigid transform over a whole map is
-  // fixed long before every metre of a 3 km drive is used, and the cost grows with the points.
-  const std::vector<Vec3d> downsampled = localization::voxel_downsample(other_points, 2.0 * config.places.cloud_voxel);
-  const std::vector<Vec3d> source = downsampled.size() > config.refine_points
-                                        ? unbiased_subset(downsampled, (downsampled.size() + config.refine_points - 1) /
-                                                                           config.refine_points)
-                                        : downsampled;
-  Pose T = start;
-  for (const double distance : {2.0 * config.places.cloud_voxel, config.places.cloud_voxel, voxel}) {
-    localization::IcpOptions icp;
-    icp.max_correspondence_distance = distance;
-    icp.kernel_scale = distance / 9.0;
-    icp.max_iterations = 30;
-    icp.convergence = 1e-5;
-    icp.min_correspondences = 50;
-    const localization::IcpResult r = localization::align_point_to_point(source, target, T, icp);
-    if (!r.enough_correspondences) break;  // keep the last good transform
-    T = r.T_target_source;
-  }
-  if (config.surface_refinement) {
-    // Point-to-point between two voxel-centre lattices locks them together (surface_refinement.hpp):
-    // the last step puts the other session's voxels on the base's surface planes: a quarter of
-    // them (each a voxel centre as stored), picked without a geometric pattern.
-    SurfaceRefinementConfig surface;
-    surface.voxel = voxel;
-    surface.normal_radius = 2.4 * voxel;
-    surface.max_distance = voxel;
-    const std::vector<Vec3d> surface_source = unbiased_subset(
-        other_points, std::max<uint64_t>(4, (other_points.size() + config.refine_points - 1) / config.refine_points));
-    std::vector<Vec3d> surface_start;
-    surface_start.reserve(surface_source.size());
-    for (const Vec3d& p : surface_source) surface_start.push_back(T * p);
-    const SurfacePlanes planes(base_points, surface_start, surface);
-    const SurfaceRefinement refined = refine_on_surface(surface_source, planes, T, surface);
-    if (refined.ok) T = refined.T_base_other;
-  }
-  const localization::AlignmentQuality quality = localization::alignment_quality(source, target, T, config.inlier_distance);
-  return {T, quality.inlier_fraction(), quality.inlier_rmse};
-}
-
-// Refines the winner over all its places (`only_other_submap`: over that other submap's places
-// and voxels alone). The base reaches farther than the other session's places, so that every
-// point of those finds its true neighbour.
-RefinedClouds refine_places(const AlignmentSession& base, const AlignmentSession& other,
-                            const std::vector<VerifiedPair>& pairs, const std::vector<std::size_t>& winners,
-                            const Pose& start, const AlignmentConfig& config,
-                            std::optional<std::size_t> only_other_submap = {}) {
-  const double radius = config.places.scan_context.max_radius;
-  std::set<std::size_t> base_places, other_places;
-  for (const std::size_t i : winners) {
-    if (only_other_submap && other.places[pairs[i].other_place].submap != *only_other_submap) continue;
-    base_places.insert(pairs[i].base_place);
-    other_places.insert(pairs[i].other_place);
-  }
-  return refine_clouds(session_cloud_near(base, base_places, radius + 10.0, config.refine_voxel),
-                       session_cloud_near(other, other_places, radius, config.refine_voxel, only_other_submap), start,
-                       config);
-}
 
 // Every place of the other session outside the survey (not a multiple of `step`), verified once:
 // against the base place nearest (within guided_radius) to where the survey's winner puts it, from
@@ -323,7 +215,15 @@ SessionAlignment align_sessions(const std::vector<SessionSubmap>& base_submaps,
   result.consistent = consensus.winners;
   const std::vector<std::size_t>& winners = consensus.winners;
   const std::size_t best = consensus.best;
-  const RefinedClouds refined = refine_places(base, other, pairs, winners, pairs[best].T_base_other, config);
+  // The whole's ICP first, then the base's surface planes near the other session's points where
+  // it puts them, fitted once for every refinement (session_refinement.hpp).
+  std::set<std::size_t> base_places, other_places;
+  winning_places(other, pairs, winners, std::nullopt, base_places, other_places);
+  RefinementBase refinement_base(base, base_places, config);
+  const RefinementSource whole = refinement_source(other, other_places, config);
+  const Pose T_whole_icp = refinement_base.icp(whole, pairs[best].T_base_other);
+  if (config.surface_refinement) refinement_base.add_planes_near(whole, T_whole_icp);
+  const RefinedClouds refined = refinement_base.finish(whole, T_whole_icp);
   result.T_base_other = refined.T_base_other;
   result.overlap = refined.overlap;
   result.rmse = refined.rmse;
@@ -353,7 +253,13 @@ SessionAlignment align_sessions(const std::vector<SessionSubmap>& base_submaps,
   const std::vector<std::pair<std::size_t, std::size_t>> refined_submaps(pairs_in_submap.begin(), pairs_in_submap.end());
   std::vector<RefinedClouds> submap_results(refined_submaps.size());
   tbb::parallel_for(std::size_t{0}, refined_submaps.size(), [&](std::size_t k) {
-    submap_results[k] = refine_places(base, other, pairs, winners, result.T_base_other, config, refined_submaps[k].first);
+    std::set<std::size_t> submap_base_places, submap_places;
+    winning_places(other, pairs, winners, refined_submaps[k].first, submap_base_places, submap_places);
+    RefinementBase own(base, submap_base_places, config);
+    own.use_planes_of(refinement_base);
+    submap_results[k] =
+        own.refine(refinement_source(other, submap_places, config, refined_submaps[k].first), result.T_base_other,
+                               /*from_refined=*/true);
   });
   for (std::size_t k = 0; k < refined_submaps.size(); ++k) {
     const RefinedClouds& r = submap_results[k];

@@ -1,9 +1,12 @@
 #include "slamvdb/sessions/surface_refinement.hpp"
 
+#include <absl/container/flat_hash_set.h>
 #include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
 #include <tbb/parallel_reduce.h>
 
 #include <Eigen/Cholesky>
+#include <algorithm>
 #include <Eigen/Eigenvalues>
 #include <cmath>
 
@@ -41,56 +44,85 @@ void SurfacePlanes::for_each_near(const Vec3d& p, int reach, F&& f) const {
       }
 }
 
+namespace {
+
+// Marks the base points within `near_distance` of one of `near` (per axis), and some a little
+// farther: those whose cell of near_distance + voxel is next to one holding a near point (two
+// points that close are at most one such cell apart along each axis). 27 look-ups a point where
+// the exact test of every voxel cell within reach took 125 per near point.
+std::vector<char> points_near(const std::vector<Vec3d>& points, const std::vector<Vec3d>& near, double cell) {
+  absl::flat_hash_set<uint64_t> near_cells;
+  near_cells.reserve(near.size() / 4);
+  for (const Vec3d& p : near) near_cells.insert(pack_voxel(voxel_of(p, cell)));
+  std::vector<char> wanted(points.size(), 0);
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, points.size(), 4096), [&](const tbb::blocked_range<std::size_t>& r) {
+    for (std::size_t i = r.begin(); i != r.end(); ++i) {
+      const LocalVoxel k = voxel_of(points[i], cell);
+      for (int d = 0; d < 27 && !wanted[i]; ++d)
+        wanted[i] = near_cells.contains(pack_voxel(k + LocalVoxel(d % 3 - 1, d / 3 % 3 - 1, d / 9 - 1)));
+    }
+  });
+  return wanted;
+}
+
+}  // namespace
+
 SurfacePlanes::SurfacePlanes(const std::vector<Vec3d>& base_points, const std::vector<Vec3d>& near,
-                             const SurfaceRefinementConfig& config)
+                             const SurfaceRefinementConfig& config, double near_distance)
     : cell_(config.voxel), points_(base_points) {
   for (std::size_t i = 0; i < points_.size(); ++i) cells_[pack_voxel(voxel_of(points_[i], cell_))].push_back(i);
   centroids_.resize(points_.size());
   normals_.assign(points_.size(), Vec3d::Zero());
-  std::vector<char> wanted(points_.size(), 0);
-  for (const Vec3d& p : near) for_each_near(p, 2, [&](std::size_t j) { wanted[j] = 1; });
+  const std::vector<char> wanted = points_near(points_, near, near_distance + cell_);
+  // Each point's plane from its neighbours alone: in parallel, the same in any order.
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, points_.size(), 1024),
+                    [&](const tbb::blocked_range<std::size_t>& range) {
+                      for (std::size_t i = range.begin(); i != range.end(); ++i)
+                        if (wanted[i]) fit_plane(i, config);
+                    });
+  planes_ = static_cast<std::size_t>(
+      std::count_if(normals_.begin(), normals_.end(), [](const Vec3d& n) { return !n.isZero(); }));
+}
+
+void SurfacePlanes::fit_plane(std::size_t i, const SurfaceRefinementConfig& config) {
   const int reach = static_cast<int>(std::ceil(config.normal_radius / cell_));
   const double r2 = config.normal_radius * config.normal_radius;
-  for (std::size_t i = 0; i < points_.size(); ++i) {
-    if (!wanted[i]) continue;
-    Vec3d sum = Vec3d::Zero();
-    Eigen::Matrix3d outer = Eigen::Matrix3d::Zero();
-    std::size_t n = 0;
-    // The cells of the (2 reach + 1)^3 block in for_each_near's order, without those whose box lies
-    // beyond the radius (most of the block's corners): their points would all be rejected below,
-    // so the sums, and their order, are the same as over the whole block.
-    const Vec3d& p = points_[i];
-    const LocalVoxel k = voxel_of(p, cell_);
-    for (int dx = -reach; dx <= reach; ++dx) {
-      const double gx = surface_cell_gap(p.x(), k.x(), dx, cell_);
-      for (int dy = -reach; dy <= reach; ++dy) {
-        const double gxy = gx + surface_cell_gap(p.y(), k.y(), dy, cell_);
-        if (gxy > r2) continue;
-        for (int dz = -reach; dz <= reach; ++dz) {
-          if (gxy + surface_cell_gap(p.z(), k.z(), dz, cell_) > r2) continue;
-          const auto it = cells_.find(pack_voxel(k + LocalVoxel(dx, dy, dz)));
-          if (it == cells_.end()) continue;
-          for (const std::size_t j : it->second) {
-            const Vec3d d = points_[j] - p;  // about the point, for precision far from the origin
-            if (d.squaredNorm() > r2) continue;
-            sum += d;
-            outer += d * d.transpose();
-            ++n;
-          }
+  Vec3d sum = Vec3d::Zero();
+  Eigen::Matrix3d outer = Eigen::Matrix3d::Zero();
+  std::size_t n = 0;
+  // The cells of the (2 reach + 1)^3 block in for_each_near's order, without those whose box lies
+  // beyond the radius (most of the block's corners): their points would all be rejected below,
+  // so the sums, and their order, are the same as over the whole block.
+  const Vec3d& p = points_[i];
+  const LocalVoxel k = voxel_of(p, cell_);
+  for (int dx = -reach; dx <= reach; ++dx) {
+    const double gx = surface_cell_gap(p.x(), k.x(), dx, cell_);
+    for (int dy = -reach; dy <= reach; ++dy) {
+      const double gxy = gx + surface_cell_gap(p.y(), k.y(), dy, cell_);
+      if (gxy > r2) continue;
+      for (int dz = -reach; dz <= reach; ++dz) {
+        if (gxy + surface_cell_gap(p.z(), k.z(), dz, cell_) > r2) continue;
+        const auto it = cells_.find(pack_voxel(k + LocalVoxel(dx, dy, dz)));
+        if (it == cells_.end()) continue;
+        for (const std::size_t j : it->second) {
+          const Vec3d d = points_[j] - p;  // about the point, for precision far from the origin
+          if (d.squaredNorm() > r2) continue;
+          sum += d;
+          outer += d * d.transpose();
+          ++n;
         }
       }
     }
-    if (n < config.min_neighbours) continue;
-    const Vec3d mean = sum / static_cast<double>(n);
-    const Eigen::Matrix3d covariance = outer / static_cast<double>(n) - mean * mean.transpose();
-    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver(covariance);  // ascending eigenvalues
-    // A plane only where the neighbourhood is flat more than linear (a pole's column of voxels
-    // or a lone row has no normal).
-    if (solver.eigenvalues()(1) < 0.25 * solver.eigenvalues()(2)) continue;
-    centroids_[i] = points_[i] + mean;
-    normals_[i] = solver.eigenvectors().col(0);
-    ++planes_;
   }
+  if (n < config.min_neighbours) return;
+  const Vec3d mean = sum / static_cast<double>(n);
+  const Eigen::Matrix3d covariance = outer / static_cast<double>(n) - mean * mean.transpose();
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver(covariance);  // ascending eigenvalues
+  // A plane only where the neighbourhood is flat more than linear (a pole's column of voxels
+  // or a lone row has no normal).
+  if (solver.eigenvalues()(1) < 0.25 * solver.eigenvalues()(2)) return;
+  centroids_[i] = points_[i] + mean;
+  normals_[i] = solver.eigenvectors().col(0);
 }
 
 bool SurfacePlanes::nearest(const Vec3d& p, Vec3d& centroid, Vec3d& normal) const {

@@ -34,10 +34,12 @@ struct SurfaceRefinementConfig {
 // The base's surface: one plane (centroid, unit normal) per base point that has enough neighbours.
 class SurfacePlanes {
  public:
-  // Planes only for the base points within two voxel cells of one of `near` (the other session's
-  // points where the refinement starts): the rest is never matched, and a plane costs 125 cell look-ups.
+  // Planes only for the base points within `near_distance` (metres, per axis; some a little
+  // farther) of one of `near` (the other session's points where the refinements start): the rest
+  // is never matched, and a plane costs up to 125 cell look-ups. Planes in parallel (TBB), the
+  // same whatever the thread count.
   SurfacePlanes(const std::vector<Vec3d>& base_points, const std::vector<Vec3d>& near,
-                const SurfaceRefinementConfig& config);
+                const SurfaceRefinementConfig& config, double near_distance = 0.5);
   // The plane of the base point nearest to `p` among the 27 cells around it (cells of one
   // voxel, so exact up to a voxel's distance); false if there is none or it has no plane.
   bool nearest(const Vec3d& p, Vec3d& centroid, Vec3d& normal) const;
@@ -46,6 +48,8 @@ class SurfacePlanes {
  private:
   template <typename F>
   void for_each_near(const Vec3d& p, int reach, F&& f) const;
+  // The plane of point i (centroids_[i], normals_[i]) if it has one; touches only those.
+  void fit_plane(std::size_t i, const SurfaceRefinementConfig& config);
   double cell_;
   std::vector<Vec3d> points_, centroids_, normals_;  // a zero normal: no plane
   std::size_t planes_ = 0;
