@@ -38,7 +38,10 @@ std::vector<SubmapAbsorption> merge_overlapping_sessions(std::vector<std::pair<S
                     [&](std::size_t i) { boxes[i] = overlap_merge_world_box(submaps[i].first, submaps[i].second); });
   std::vector<bool> absorbed(submaps.size(), false);
   for (std::size_t s = 0; s < submaps.size(); ++s) {
-    const auto& [source_info, source] = submaps[s];
+    // Named references, not a structured binding: the lambda below captures them (clang 14 refuses
+    // to capture a structured binding).
+    const SubmapInfo& source_info = submaps[s].first;
+    const VoxelMap& source = submaps[s].second;
     std::vector<std::size_t> candidates;
     for (std::size_t t = 0; t < s; ++t) {
       const SubmapInfo& target_info = submaps[t].first;
