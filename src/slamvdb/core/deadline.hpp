@@ -26,6 +26,7 @@ class Deadline {
     return budget.count() > 0 ? Deadline(Clock::now() + budget) : Deadline();
   }
   bool set() const { return at_.has_value(); }
+  Clock::time_point at() const { return at_.value_or(Clock::time_point::max()); }  // max: never
   bool passed() const { return at_ && Clock::now() >= *at_; }
   // Throws DeadlineExceeded naming `what` (the work being stopped) when the deadline has passed.
   void check(const char* what) const {

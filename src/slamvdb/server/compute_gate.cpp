@@ -19,12 +19,8 @@ ComputeGate::Pass ComputeGate::enter(const Deadline& deadline) {
   // a release and the waiter's wake-up cannot take it first.
   const auto me = queue_.emplace(queue_.end());
   const auto admitted = [&] { return me->admitted; };
-  if (deadline.set()) {
-    // The deadline is looked at every 10 ms (a budget is seconds; an admission wakes at once).
-    while (!me->admitted && !deadline.passed()) me->woken.wait_for(lock, std::chrono::milliseconds(10), admitted);
-  } else {
-    me->woken.wait(lock, admitted);
-  }
+  if (deadline.set()) me->woken.wait_until(lock, deadline.at(), admitted);  // wakes when admitted or at the deadline
+  else me->woken.wait(lock, admitted);
   const bool got = me->admitted;
   queue_.erase(me);
   if (!got) throw DeadlineExceeded("time budget exceeded while waiting for a free core");
